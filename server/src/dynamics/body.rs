@@ -1,0 +1,151 @@
+//! Rigid bodies: the definition a scene or an action gives, and the flat storage the
+//! solver streams through.
+
+use glam::DVec2;
+
+use crate::behavior::Behavior;
+use crate::geometry::Shape;
+
+/// Index of a group of bodies (see [`crate::world::World::group`]).
+pub type GroupId = u16;
+
+/// A stable handle to a body: it survives other bodies being removed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct BodyKey(pub u32);
+
+/// Everything needed to create a body. `BodyDef::default()` is the chapter's default
+/// rigid shape: mass 1, restitution 0.8, friction 0.3, the world's gravity.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyDef {
+    /// The name reported in frames and dumps; unique in a world.
+    pub id: String,
+    /// The group the body belongs to; interactions are declared between groups.
+    pub group: String,
+    pub shape: Shape,
+    pub pos: DVec2,
+    pub vel: DVec2,
+    /// Mass; 0 makes the body static (never moved by anything).
+    pub mass: f64,
+    pub restitution: f64,
+    pub friction: f64,
+    /// Overrides the world's gravity for this body (the chapter's per-shape acceleration).
+    pub gravity: Option<DVec2>,
+    pub behavior: Behavior,
+}
+
+impl Default for BodyDef {
+    fn default() -> Self {
+        BodyDef {
+            id: String::new(),
+            group: String::from("default"),
+            shape: Shape::rect(1.0, 1.0),
+            pos: DVec2::ZERO,
+            vel: DVec2::ZERO,
+            mass: 1.0,
+            restitution: 0.8,
+            friction: 0.3,
+            gravity: None,
+            behavior: Behavior::None,
+        }
+    }
+}
+
+/// The largest coordinate or size the engine accepts (units). Beyond it, f64 still holds
+/// the numbers but a step's products overflow towards infinity.
+pub const MAX_COORDINATE: f64 = 1e12;
+
+/// Why a body definition was refused: the field and the reason.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {reason}")]
+pub struct BodyError {
+    pub field: &'static str,
+    pub reason: String,
+}
+
+impl BodyDef {
+    /// Checks every number; NaN, infinity, negative masses and absurd sizes are refused.
+    pub fn validate(&self) -> Result<(), BodyError> {
+        let err = |field, reason: String| Err(BodyError { field, reason });
+        let finite_in = |v: DVec2| v.is_finite() && v.abs().max_element() <= MAX_COORDINATE;
+        match self.shape {
+            Shape::Rect { half } => {
+                if !(finite_in(half) && half.x > 0.0 && half.y > 0.0) {
+                    return err("size", format!("{} x {} must be two finite numbers above 0 and at most {MAX_COORDINATE}", half.x * 2.0, half.y * 2.0));
+                }
+            }
+            Shape::Circle { radius } => {
+                if !(radius.is_finite() && radius > 0.0 && radius <= MAX_COORDINATE) {
+                    return err("radius", format!("{radius} must be a finite number above 0 and at most {MAX_COORDINATE}"));
+                }
+            }
+        }
+        if !finite_in(self.pos) {
+            return err("pos", format!("{} must be finite and within ±{MAX_COORDINATE}", self.pos));
+        }
+        if !finite_in(self.vel) {
+            return err("vel", format!("{} must be finite and within ±{MAX_COORDINATE}", self.vel));
+        }
+        if !(self.mass.is_finite() && self.mass >= 0.0) {
+            return err("mass", format!("{} must be a finite number, 0 (static) or above", self.mass));
+        }
+        if !(self.restitution.is_finite() && self.restitution >= 0.0) {
+            return err("restitution", format!("{} must be a finite number, 0 or above", self.restitution));
+        }
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            return err("friction", format!("{} must be a finite number, 0 or above", self.friction));
+        }
+        if let Some(g) = self.gravity {
+            if !finite_in(g) {
+                return err("gravity", format!("{g} must be finite"));
+            }
+        }
+        Ok(())
+    }
+
+    /// The inverse mass the solver uses: 0 for a static body.
+    pub fn inv_mass(&self) -> f64 {
+        if self.mass > 0.0 {
+            1.0 / self.mass
+        } else {
+            0.0
+        }
+    }
+}
+
+/// One body as the solver sees it. Kept small: the relaxation loop touches these fields
+/// for every pair it tests.
+#[derive(Clone, Debug)]
+pub struct Body {
+    pub pos: DVec2,
+    pub vel: DVec2,
+    pub shape: Shape,
+    pub inv_mass: f64,
+    pub restitution: f64,
+    pub friction: f64,
+    /// Touched by a rigid collision during the current step (drawn red by the chapter).
+    pub collided: bool,
+    pub gravity: Option<DVec2>,
+    pub group: GroupId,
+    pub key: BodyKey,
+    pub behavior: Behavior,
+    pub id: String,
+}
+
+impl Body {
+    pub fn is_static(&self) -> bool {
+        self.inv_mass == 0.0
+    }
+
+    pub fn mass(&self) -> f64 {
+        if self.inv_mass > 0.0 {
+            1.0 / self.inv_mass
+        } else {
+            0.0
+        }
+    }
+
+    /// Kinetic energy `m v² / 2` (0 for a static body).
+    pub fn kinetic_energy(&self) -> f64 {
+        0.5 * self.mass() * self.vel.length_squared()
+    }
+}

@@ -1,0 +1,268 @@
+//! Every world-wide knob in one place, documented field by field: the `[world]` table of a
+//! scene, the `--set NAME=VALUE` overrides of a headless run and the "set parameter"
+//! action all go through [`WorldConfig::set`].
+
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+/// How positions and velocities advance over one step ("Movement").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrator {
+    /// Symplectic (semi-implicit) Euler: `v += a dt; p += v_new dt`. The chapter's choice.
+    #[default]
+    Symplectic,
+    /// Explicit Euler: `p += v_old dt; v += a dt`. Kept for comparison: it gains energy.
+    Explicit,
+}
+
+impl Integrator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Symplectic => "symplectic",
+            Integrator::Explicit => "explicit",
+        }
+    }
+}
+
+/// The chapter's positional correction rate, used when a value outside (0, 1) is given.
+pub const DEFAULT_CORRECTION_RATE: f64 = 0.8;
+/// The chapter's relaxation count.
+pub const DEFAULT_RELAXATION_ITERATIONS: u32 = 15;
+
+/// World parameters. Defaults are the chapter's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WorldConfig {
+    /// Acceleration applied to rigid bodies that do not override it (units/s²).
+    pub gravity: DVec2,
+    /// Acceleration applied to particles that do not override it (units/s²).
+    pub particle_gravity: DVec2,
+    /// The fixed time step in seconds.
+    pub dt: f64,
+    /// Upper bound of relaxation iterations per interaction per step (at least 1).
+    pub relaxation_iterations: u32,
+    /// Fraction of the penetration depth removed per relaxation iteration, in (0, 1).
+    pub correction_rate: f64,
+    /// Seed of the world's one random generator.
+    pub seed: u64,
+    /// Movement integrator.
+    pub integrator: Integrator,
+    /// The chapter scales a body's acceleration by its inverse mass (a body of mass 2
+    /// falls at half the rate). Physically classical scenes turn this off.
+    pub mass_scaled_acceleration: bool,
+    /// The world's extent, lower-left and upper-right corners: the viewer's camera.
+    pub bounds: [DVec2; 2],
+}
+
+impl Default for WorldConfig {
+    fn default() -> Self {
+        WorldConfig {
+            gravity: DVec2::new(0.0, -50.0),
+            particle_gravity: DVec2::new(0.0, -50.0),
+            dt: 1.0 / 60.0,
+            relaxation_iterations: DEFAULT_RELAXATION_ITERATIONS,
+            correction_rate: DEFAULT_CORRECTION_RATE,
+            seed: 1,
+            integrator: Integrator::Symplectic,
+            mass_scaled_acceleration: true,
+            bounds: [DVec2::ZERO, DVec2::new(200.0, 112.5)],
+        }
+    }
+}
+
+/// A refused parameter: which one and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("unknown world parameter `{0}` (known: {known})", known = WorldConfig::NAMES.join(", "))]
+    UnknownName(String),
+    #[error("world parameter `{name}`: {reason}")]
+    Invalid { name: String, reason: String },
+}
+
+fn invalid(name: &str, reason: impl Into<String>) -> ConfigError {
+    ConfigError::Invalid {
+        name: name.to_string(),
+        reason: reason.into(),
+    }
+}
+
+impl WorldConfig {
+    /// The names [`WorldConfig::set`] accepts.
+    pub const NAMES: &'static [&'static str] = &[
+        "gravity",
+        "particle_gravity",
+        "dt",
+        "relaxation_iterations",
+        "correction_rate",
+        "seed",
+        "integrator",
+        "mass_scaled_acceleration",
+        "bounds",
+    ];
+
+    /// The chapter's setter: a rate outside (0, 1) becomes 0.8. Non-finite is refused.
+    pub fn set_correction_rate(&mut self, rate: f64) -> Result<(), ConfigError> {
+        if !rate.is_finite() {
+            return Err(invalid("correction_rate", format!("{rate} is not a finite number")));
+        }
+        self.correction_rate = if rate <= 0.0 || rate >= 1.0 {
+            tracing::warn!(rate, "correction_rate outside (0, 1): using 0.8, as the chapter does");
+            DEFAULT_CORRECTION_RATE
+        } else {
+            rate
+        };
+        Ok(())
+    }
+
+    /// The chapter's setter: a count below 1 becomes 1.
+    pub fn set_relaxation_iterations(&mut self, count: i64) {
+        self.relaxation_iterations = count.clamp(1, u32::MAX as i64) as u32;
+    }
+
+    /// Sets the time step; it must be finite and positive.
+    pub fn set_dt(&mut self, dt: f64) -> Result<(), ConfigError> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(invalid("dt", format!("{dt} must be a finite number above 0")));
+        }
+        self.dt = dt;
+        Ok(())
+    }
+
+    /// Checks a whole configuration (after deserialising a scene) and applies the
+    /// chapter's clamps. Returns the name of the first bad field with the reason.
+    pub fn validate(&mut self) -> Result<(), ConfigError> {
+        for (name, v) in [("gravity", self.gravity), ("particle_gravity", self.particle_gravity)] {
+            if !v.is_finite() {
+                return Err(invalid(name, format!("{v} is not finite")));
+            }
+        }
+        self.set_dt(self.dt)?;
+        self.set_correction_rate(self.correction_rate)?;
+        self.set_relaxation_iterations(self.relaxation_iterations as i64);
+        let [lo, hi] = self.bounds;
+        if !(lo.is_finite() && hi.is_finite() && hi.x > lo.x && hi.y > lo.y) {
+            return Err(invalid("bounds", "needs two finite corners [[x0, y0], [x1, y1]] with x1 > x0 and y1 > y0"));
+        }
+        Ok(())
+    }
+
+    /// Sets one parameter by name from a TOML value (`--set NAME=VALUE`, the "set
+    /// parameter" action). The value uses the scene file's syntax: `[0, -9.8]`, `0.5`,
+    /// `"explicit"`, `true`.
+    pub fn set(&mut self, name: &str, value: &toml::Value) -> Result<(), ConfigError> {
+        if !Self::NAMES.contains(&name) {
+            return Err(ConfigError::UnknownName(name.to_string()));
+        }
+        let mut table = toml::Table::new();
+        table.insert(name.to_string(), value.clone());
+        // Deserialise the one field through the same code as a scene's [world] table.
+        let parsed: WorldConfig = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| invalid(name, e.message().to_string()))?;
+        let mut next = self.clone();
+        match name {
+            "gravity" => next.gravity = parsed.gravity,
+            "particle_gravity" => next.particle_gravity = parsed.particle_gravity,
+            "dt" => next.dt = parsed.dt,
+            "relaxation_iterations" => {
+                // Accept any integer so that 0 or -3 get the chapter's clamp, not an error.
+                let count = value
+                    .as_integer()
+                    .ok_or_else(|| invalid(name, "expected an integer"))?;
+                next.set_relaxation_iterations(count);
+            }
+            "correction_rate" => next.correction_rate = parsed.correction_rate,
+            "seed" => next.seed = parsed.seed,
+            "integrator" => next.integrator = parsed.integrator,
+            "mass_scaled_acceleration" => {
+                next.mass_scaled_acceleration = parsed.mass_scaled_acceleration
+            }
+            "bounds" => next.bounds = parsed.bounds,
+            _ => unreachable!("checked against NAMES"),
+        }
+        next.validate()?;
+        *self = next;
+        Ok(())
+    }
+
+    /// Parses `NAME=VALUE` (the command line's `--set`) and applies it.
+    pub fn set_from_str(&mut self, assignment: &str) -> Result<(), ConfigError> {
+        let (name, value) = assignment
+            .split_once('=')
+            .ok_or_else(|| invalid(assignment, "expected NAME=VALUE"))?;
+        let name = name.trim();
+        let value = parse_toml_value(value.trim()).map_err(|reason| invalid(name, reason))?;
+        self.set(name, &value)
+    }
+}
+
+/// Parses a lone TOML value (`0.5`, `[0, -9.8]`, `"explicit"`). A bare word that is not
+/// valid TOML is taken as a string, so `--set integrator=explicit` works unquoted.
+pub fn parse_toml_value(text: &str) -> Result<toml::Value, String> {
+    let doc = format!("v = {text}");
+    match doc.parse::<toml::Table>() {
+        Ok(mut t) => Ok(t.remove("v").expect("key v was written above")),
+        Err(_) if !text.is_empty() && text.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') => {
+            Ok(toml::Value::String(text.to_string()))
+        }
+        Err(e) => Err(format!("`{text}` is not a value: {}", e.message())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_chapters() {
+        let c = WorldConfig::default();
+        assert_eq!(c.gravity, DVec2::new(0.0, -50.0));
+        assert_eq!(c.relaxation_iterations, 15);
+        assert_eq!(c.correction_rate, 0.8);
+        assert!((c.dt - 1.0 / 60.0).abs() < 1e-15);
+        assert!(c.mass_scaled_acceleration);
+    }
+
+    #[test]
+    fn setter_clamps_follow_the_chapter() {
+        let mut c = WorldConfig::default();
+        c.set_from_str("correction_rate=0.5").unwrap();
+        assert_eq!(c.correction_rate, 0.5);
+        c.set_from_str("correction_rate=1.0").unwrap();
+        assert_eq!(c.correction_rate, 0.8);
+        c.set_from_str("correction_rate=-2").unwrap();
+        assert_eq!(c.correction_rate, 0.8);
+        c.set_from_str("relaxation_iterations=0").unwrap();
+        assert_eq!(c.relaxation_iterations, 1);
+        c.set_from_str("relaxation_iterations=-7").unwrap();
+        assert_eq!(c.relaxation_iterations, 1);
+        c.set_from_str("relaxation_iterations=40").unwrap();
+        assert_eq!(c.relaxation_iterations, 40);
+    }
+
+    #[test]
+    fn set_parses_vectors_and_enums() {
+        let mut c = WorldConfig::default();
+        c.set_from_str("gravity=[0, -9.81]").unwrap();
+        assert_eq!(c.gravity, DVec2::new(0.0, -9.81));
+        c.set_from_str("integrator=explicit").unwrap();
+        assert_eq!(c.integrator, Integrator::Explicit);
+        c.set_from_str("integrator=\"symplectic\"").unwrap();
+        assert_eq!(c.integrator, Integrator::Symplectic);
+        c.set_from_str("mass_scaled_acceleration=false").unwrap();
+        assert!(!c.mass_scaled_acceleration);
+    }
+
+    #[test]
+    fn bad_values_are_refused_by_name_and_change_nothing() {
+        let mut c = WorldConfig::default();
+        let before = c.clone();
+        for bad in ["dt=0", "dt=-1", "dt=nan", "gravity=[0]", "gravity=[inf, 0]", "integrator=verlet", "nope=1", "dt"] {
+            let e = c.set_from_str(bad).unwrap_err().to_string();
+            let name = bad.split('=').next().unwrap();
+            assert!(e.contains(name), "error for {bad} should name {name}: {e}");
+        }
+        assert_eq!(c, before);
+    }
+}

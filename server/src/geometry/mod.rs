@@ -1,0 +1,7 @@
+//! Shapes and narrow-phase collision detection.
+
+pub mod collision;
+pub mod shape;
+
+pub use collision::{collide, CollisionInfo};
+pub use shape::{Aabb, Shape};

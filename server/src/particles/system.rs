@@ -1,0 +1,341 @@
+//! Particles ("Particles and Particle Systems"): positions without area that move by
+//! symplectic Euler with drag, change colour and size each update and expire.
+//!
+//! Stored as flat arrays (one per field) so the update loop streams through memory and
+//! a million particles cost what their bytes cost. Hot fields are updated every step;
+//! colour is cold: it is derived from the particle's age when a frame is read, which is
+//! also more exact than the chapter's running sum of colour deltas.
+
+use glam::{Vec2, Vec4};
+
+/// One particle as a scene or a preset defines it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParticleDef {
+    pub pos: Vec2,
+    pub vel: Vec2,
+    /// Updates left to live; the particle is removed once this falls below 0.
+    pub life: f32,
+    pub size: f32,
+    pub color: Vec4,
+    /// Colour reached when `life` runs out (components above 1 are oversaturated).
+    pub final_color: Vec4,
+    /// Size factor applied every update (the chapter's `setSizeDelta`).
+    pub size_delta: f32,
+    /// Velocity factor applied every update.
+    pub drag: f32,
+    /// Overrides the world's particle gravity.
+    pub gravity: Option<Vec2>,
+}
+
+impl Default for ParticleDef {
+    fn default() -> Self {
+        ParticleDef {
+            pos: Vec2::ZERO,
+            vel: Vec2::ZERO,
+            life: 60.0,
+            size: 1.0,
+            color: Vec4::ONE,
+            final_color: Vec4::ONE,
+            size_delta: 1.0,
+            drag: 0.95,
+            gravity: None,
+        }
+    }
+}
+
+/// Why a particle definition was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{field}: {reason}")]
+pub struct ParticleError {
+    pub field: &'static str,
+    pub reason: String,
+}
+
+impl ParticleDef {
+    pub fn validate(&self) -> Result<(), ParticleError> {
+        let err = |field, reason: String| Err(ParticleError { field, reason });
+        if !self.pos.is_finite() {
+            return err("pos", format!("{} is not finite", self.pos));
+        }
+        if !self.vel.is_finite() {
+            return err("vel", format!("{} is not finite", self.vel));
+        }
+        if !(self.life.is_finite() && self.life >= 0.0) {
+            return err("life", format!("{} must be a finite number of updates, 0 or more", self.life));
+        }
+        if !(self.size.is_finite() && self.size >= 0.0) {
+            return err("size", format!("{} must be finite and not negative", self.size));
+        }
+        if !self.color.is_finite() {
+            return err("color", format!("{} is not finite", self.color));
+        }
+        if !self.final_color.is_finite() {
+            return err("final_color", format!("{} is not finite", self.final_color));
+        }
+        if !(self.size_delta.is_finite() && self.size_delta >= 0.0) {
+            return err("size_delta", format!("{} must be finite and not negative", self.size_delta));
+        }
+        if !(self.drag.is_finite() && self.drag >= 0.0) {
+            return err("drag", format!("{} must be finite and not negative", self.drag));
+        }
+        if self.gravity.is_some_and(|g| !g.is_finite()) {
+            return err("gravity", "is not finite".into());
+        }
+        Ok(())
+    }
+}
+
+/// All particles of a world, one array per field.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Particles {
+    // Hot: read and written by every update.
+    pub x: Vec<f32>,
+    pub y: Vec<f32>,
+    pub vx: Vec<f32>,
+    pub vy: Vec<f32>,
+    pub life: Vec<f32>,
+    pub size: Vec<f32>,
+    // Read by every update.
+    pub ax: Vec<f32>,
+    pub ay: Vec<f32>,
+    pub drag: Vec<f32>,
+    pub size_delta: Vec<f32>,
+    // Cold: read only to draw.
+    pub initial_life: Vec<f32>,
+    pub color: Vec<Vec4>,
+    pub color_delta: Vec<Vec4>,
+}
+
+impl Particles {
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.x.is_empty()
+    }
+
+    /// Adds a particle; `gravity` is the world's particle gravity, used unless the
+    /// definition overrides it.
+    pub fn push(&mut self, def: &ParticleDef, gravity: Vec2) {
+        let a = def.gravity.unwrap_or(gravity);
+        self.x.push(def.pos.x);
+        self.y.push(def.pos.y);
+        self.vx.push(def.vel.x);
+        self.vy.push(def.vel.y);
+        self.life.push(def.life);
+        self.size.push(def.size);
+        self.ax.push(a.x);
+        self.ay.push(a.y);
+        self.drag.push(def.drag);
+        self.size_delta.push(def.size_delta);
+        self.initial_life.push(def.life);
+        self.color.push(def.color);
+        // The chapter's setFinalColor: the colour walks to the final one over the life.
+        let delta = if def.life != 0.0 {
+            (def.final_color - def.color) / def.life
+        } else {
+            Vec4::ZERO
+        };
+        self.color_delta.push(delta);
+    }
+
+    pub fn clear(&mut self) {
+        *self = Particles::default();
+    }
+
+    /// The colour of particle `i` now: start colour plus one delta per update lived.
+    pub fn color_of(&self, i: usize) -> Vec4 {
+        self.color[i] + self.color_delta[i] * (self.initial_life[i] - self.life[i])
+    }
+
+    pub fn pos(&self, i: usize) -> Vec2 {
+        Vec2::new(self.x[i], self.y[i])
+    }
+
+    /// One update of every particle ("Particle.update", "ParticleGameObject.update"):
+    /// `v += a dt; v *= drag; p += v dt`, one update of life used, size scaled. Then the
+    /// expired (life below 0) are removed, keeping the order of the rest.
+    pub fn update(&mut self, dt: f32) {
+        let n = self.len();
+        let (x, y, vx, vy) = (&mut self.x[..n], &mut self.y[..n], &mut self.vx[..n], &mut self.vy[..n]);
+        let (ax, ay, drag) = (&self.ax[..n], &self.ay[..n], &self.drag[..n]);
+        for i in 0..n {
+            let nvx = (vx[i] + ax[i] * dt) * drag[i];
+            let nvy = (vy[i] + ay[i] * dt) * drag[i];
+            vx[i] = nvx;
+            vy[i] = nvy;
+            x[i] += nvx * dt;
+            y[i] += nvy * dt;
+        }
+        let (life, size, size_delta) = (&mut self.life[..n], &mut self.size[..n], &self.size_delta[..n]);
+        let mut any_expired = false;
+        for i in 0..n {
+            life[i] -= 1.0;
+            size[i] *= size_delta[i];
+            any_expired |= life[i] < 0.0;
+        }
+        if any_expired {
+            self.remove_expired();
+        }
+    }
+
+    /// Removes particles whose life is below 0, in place, keeping the order.
+    fn remove_expired(&mut self) {
+        let keep: Vec<bool> = self.life.iter().map(|&l| l >= 0.0).collect();
+        fn compact<T: Copy>(v: &mut Vec<T>, keep: &[bool]) {
+            let mut w = 0;
+            for r in 0..v.len() {
+                if keep[r] {
+                    v[w] = v[r];
+                    w += 1;
+                }
+            }
+            v.truncate(w);
+        }
+        compact(&mut self.x, &keep);
+        compact(&mut self.y, &keep);
+        compact(&mut self.vx, &keep);
+        compact(&mut self.vy, &keep);
+        compact(&mut self.life, &keep);
+        compact(&mut self.size, &keep);
+        compact(&mut self.ax, &keep);
+        compact(&mut self.ay, &keep);
+        compact(&mut self.drag, &keep);
+        compact(&mut self.size_delta, &keep);
+        compact(&mut self.initial_life, &keep);
+        compact(&mut self.color, &keep);
+        compact(&mut self.color_delta, &keep);
+    }
+
+    /// Projects every particle inside the rectangle (centre, half extents) out through
+    /// its nearest side ("resolveRectPos"). Returns how many were moved.
+    ///
+    /// The chapter measured the distance to the right and top sides only; here all four
+    /// sides are considered, as for circles against rectangles.
+    pub fn project_out_of_rect(&mut self, centre: Vec2, half: Vec2) -> u64 {
+        let (min, max) = (centre - half, centre + half);
+        let mut moved = 0;
+        for i in 0..self.len() {
+            let (px, py) = (self.x[i], self.y[i]);
+            if px > min.x && px < max.x && py > min.y && py < max.y {
+                let (dx, dy) = (px - centre.x, py - centre.y);
+                let to_x = half.x - dx.abs();
+                let to_y = half.y - dy.abs();
+                if to_x < to_y {
+                    self.x[i] = if dx < 0.0 { min.x } else { max.x };
+                } else {
+                    self.y[i] = if dy < 0.0 { min.y } else { max.y };
+                }
+                moved += 1;
+            }
+        }
+        moved
+    }
+
+    /// Projects every particle inside the circle out to its boundary ("resolveCirclePos").
+    /// A particle exactly at the centre goes out along +y instead of dividing by zero.
+    pub fn project_out_of_circle(&mut self, centre: Vec2, radius: f32) -> u64 {
+        let r_sq = radius * radius;
+        let mut moved = 0;
+        for i in 0..self.len() {
+            let (dx, dy) = (self.x[i] - centre.x, self.y[i] - centre.y);
+            let d_sq = dx * dx + dy * dy;
+            if d_sq < r_sq {
+                let dist = d_sq.sqrt();
+                let (nx, ny) = if dist > 0.0 { (dx / dist, dy / dist) } else { (0.0, 1.0) };
+                self.x[i] = centre.x + nx * radius;
+                self.y[i] = centre.y + ny * radius;
+                moved += 1;
+            }
+        }
+        moved
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn one(def: ParticleDef) -> Particles {
+        let mut p = Particles::default();
+        p.push(&def, Vec2::new(0.0, -50.0));
+        p
+    }
+
+    #[test]
+    fn a_particle_of_life_l_lives_l_plus_one_updates_and_reaches_its_final_colour() {
+        let mut p = one(ParticleDef {
+            life: 10.0,
+            color: Vec4::new(1.0, 0.0, 0.0, 1.0),
+            final_color: Vec4::new(3.0, 0.5, 0.5, 0.5),
+            ..Default::default()
+        });
+        for k in 1..=10 {
+            p.update(1.0 / 60.0);
+            assert_eq!(p.len(), 1, "still alive after update {k}");
+        }
+        let c = p.color_of(0);
+        assert!((c - Vec4::new(3.0, 0.5, 0.5, 0.5)).abs().max_element() < 1e-6, "{c}");
+        p.update(1.0 / 60.0);
+        assert_eq!(p.len(), 0);
+    }
+
+    #[test]
+    fn motion_with_drag_and_size_factor() {
+        let mut p = one(ParticleDef {
+            vel: Vec2::new(10.0, 0.0),
+            size: 2.0,
+            size_delta: 0.5,
+            drag: 0.5,
+            gravity: Some(Vec2::ZERO),
+            ..Default::default()
+        });
+        p.update(0.1);
+        // v = (10 + 0) * 0.5 = 5; x = 5 * 0.1.
+        assert_eq!(p.vx[0], 5.0);
+        assert_eq!(p.x[0], 0.5);
+        assert_eq!(p.size[0], 1.0);
+    }
+
+    #[test]
+    fn expiry_keeps_the_order_of_the_survivors() {
+        let mut p = Particles::default();
+        for (i, life) in [5.0, 0.0, 3.0, 0.5, 9.0].into_iter().enumerate() {
+            p.push(&ParticleDef { pos: Vec2::new(i as f32, 0.0), life, ..Default::default() }, Vec2::ZERO);
+        }
+        p.update(0.0);
+        assert_eq!(p.x, vec![0.0, 2.0, 4.0]);
+        assert_eq!(p.life, vec![4.0, 2.0, 8.0]);
+        assert_eq!(p.color.len(), 3);
+    }
+
+    #[test]
+    fn particles_leave_a_rectangle_by_the_nearest_of_all_four_sides() {
+        let mut p = Particles::default();
+        for pos in [(4.0, 0.5), (-4.0, 0.5), (0.5, 4.5), (0.5, -4.5), (9.0, 9.0)] {
+            p.push(&ParticleDef { pos: Vec2::from(pos), ..Default::default() }, Vec2::ZERO);
+        }
+        let moved = p.project_out_of_rect(Vec2::ZERO, Vec2::new(5.0, 5.0));
+        assert_eq!(moved, 4);
+        assert_eq!(p.pos(0), Vec2::new(5.0, 0.5));
+        assert_eq!(p.pos(1), Vec2::new(-5.0, 0.5));
+        assert_eq!(p.pos(2), Vec2::new(0.5, 5.0));
+        assert_eq!(p.pos(3), Vec2::new(0.5, -5.0));
+        assert_eq!(p.pos(4), Vec2::new(9.0, 9.0));
+    }
+
+    #[test]
+    fn particles_leave_a_circle_radially_even_from_its_centre() {
+        let mut p = Particles::default();
+        for pos in [(0.6, 0.8), (1.0, 1.0), (0.0, 0.0)] {
+            p.push(&ParticleDef { pos: Vec2::from(pos) + Vec2::new(10.0, 10.0), ..Default::default() }, Vec2::ZERO);
+        }
+        let moved = p.project_out_of_circle(Vec2::new(10.0, 10.0), 2.0);
+        assert_eq!(moved, 2);
+        assert!((p.pos(0) - Vec2::new(11.2, 11.6)).length() < 1e-5);
+        assert_eq!(p.pos(1), Vec2::new(11.0, 11.0));
+        assert_eq!(p.pos(2), Vec2::new(10.0, 12.0));
+        assert!(p.x.iter().chain(&p.y).all(|v| v.is_finite()));
+    }
+}

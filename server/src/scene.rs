@@ -1,0 +1,545 @@
+//! Scene files (TOML): a world's parameters, bodies, generators of bodies, particles,
+//! emitters, presets and the interactions between groups. A bad scene is refused with
+//! the file, line and field at fault.
+//!
+//! ```toml
+//! [world]                      # every field optional; the chapter's defaults
+//! gravity = [0, -50]
+//! relaxation_iterations = 15
+//!
+//! [[body]]
+//! id = "hero"
+//! group = "hero"
+//! shape = "rect"               # or "circle" with radius = r
+//! size = [16, 22]
+//! pos = [30, 30]
+//! mass = 0.7                   # 0 = static
+//! behavior = "hero"            # or "minion", "dumb_minion"
+//!
+//! [[generate]]                 # bodies "<id>/0", "<id>/1", ...
+//! kind = "row"                 # "row", "grid", "stack" or "pyramid"
+//! id = "floor"
+//! group = "platforms"
+//! size = [30, 3.75]
+//! start = [-15, 2]
+//! step = [30, 0]
+//! count = 9
+//! mass = 0
+//!
+//! [[interact]]
+//! a = "hero"
+//! b = "platforms"              # "particles" names the particle side
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use glam::{DVec2, Vec2, Vec4};
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::behavior::{self, Behavior, Held};
+use crate::dynamics::body::BodyDef;
+use crate::dynamics::config::WorldConfig;
+use crate::geometry::Shape;
+use crate::particles::{ParticleDef, ParticlePreset};
+use crate::world::World;
+
+/// A refused scene: where and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{}:{line}: {field}: {message}", file.display())]
+pub struct SceneError {
+    pub file: PathBuf,
+    /// 1-based line of the offending field (or of its table when the field is missing).
+    pub line: usize,
+    /// The field at fault, with its table: `body[2].radius`, `world.dt`.
+    pub field: String,
+    pub message: String,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    world: Option<Spanned<WorldConfig>>,
+    #[serde(default)]
+    preset: std::collections::BTreeMap<String, Spanned<ParticlePreset>>,
+    #[serde(default)]
+    body: Vec<Spanned<RawBody>>,
+    #[serde(default)]
+    generate: Vec<Spanned<RawGenerator>>,
+    #[serde(default)]
+    particle: Vec<Spanned<RawParticle>>,
+    #[serde(default)]
+    emitter: Vec<Spanned<RawEmitter>>,
+    #[serde(default)]
+    interact: Vec<Spanned<RawInteraction>>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+enum ShapeKind {
+    Rect,
+    Circle,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+enum BehaviorKind {
+    None,
+    Hero,
+    Minion,
+    DumbMinion,
+}
+
+/// The body fields shared by `[[body]]` and `[[generate]]`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBody {
+    #[serde(default)]
+    id: Option<String>,
+    #[serde(default = "default_group")]
+    group: String,
+    shape: ShapeKind,
+    #[serde(default)]
+    size: Option<[f64; 2]>,
+    #[serde(default)]
+    radius: Option<f64>,
+    #[serde(default)]
+    pos: [f64; 2],
+    #[serde(default)]
+    vel: [f64; 2],
+    #[serde(default = "default_mass")]
+    mass: f64,
+    #[serde(default = "default_restitution")]
+    restitution: f64,
+    #[serde(default = "default_friction")]
+    friction: f64,
+    #[serde(default)]
+    gravity: Option<[f64; 2]>,
+    #[serde(default)]
+    behavior: Option<BehaviorKind>,
+}
+
+fn default_group() -> String {
+    "default".into()
+}
+fn default_mass() -> f64 {
+    1.0
+}
+fn default_restitution() -> f64 {
+    0.8
+}
+fn default_friction() -> f64 {
+    0.3
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+enum GeneratorKind {
+    /// `count` bodies from `start`, each `step` from the previous.
+    Row,
+    /// `cols` x `rows` bodies from `start`, `step[0]` apart on x and `step[1]` on y.
+    Grid,
+    /// `count` bodies stacked upward, the lowest resting its bottom on `base`.
+    Stack,
+    /// `levels` rows, `levels` bodies wide at the bottom and one at the top, centred on
+    /// `base` with their bottom on it.
+    Pyramid,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawGenerator {
+    kind: GeneratorKind,
+    id: String,
+    #[serde(default = "default_group")]
+    group: String,
+    shape: ShapeKind,
+    #[serde(default)]
+    size: Option<[f64; 2]>,
+    #[serde(default)]
+    radius: Option<f64>,
+    #[serde(default)]
+    start: [f64; 2],
+    #[serde(default)]
+    step: Option<[f64; 2]>,
+    #[serde(default)]
+    base: [f64; 2],
+    #[serde(default)]
+    count: Option<u32>,
+    #[serde(default)]
+    cols: Option<u32>,
+    #[serde(default)]
+    rows: Option<u32>,
+    #[serde(default)]
+    levels: Option<u32>,
+    /// Space between neighbours of a stack or pyramid.
+    #[serde(default)]
+    gap: f64,
+    #[serde(default)]
+    vel: [f64; 2],
+    #[serde(default = "default_mass")]
+    mass: f64,
+    #[serde(default = "default_restitution")]
+    restitution: f64,
+    #[serde(default = "default_friction")]
+    friction: f64,
+    #[serde(default)]
+    gravity: Option<[f64; 2]>,
+    #[serde(default)]
+    behavior: Option<BehaviorKind>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawParticle {
+    pos: [f32; 2],
+    #[serde(default)]
+    vel: [f32; 2],
+    life: f32,
+    #[serde(default = "default_particle_size")]
+    size: f32,
+    #[serde(default = "default_color")]
+    color: [f32; 4],
+    #[serde(default)]
+    final_color: Option<[f32; 4]>,
+    #[serde(default = "default_size_delta")]
+    size_delta: f32,
+    #[serde(default = "default_drag")]
+    drag: f32,
+    #[serde(default)]
+    gravity: Option<[f32; 2]>,
+}
+
+fn default_particle_size() -> f32 {
+    1.0
+}
+fn default_color() -> [f32; 4] {
+    [1.0, 1.0, 1.0, 1.0]
+}
+fn default_size_delta() -> f32 {
+    1.0
+}
+fn default_drag() -> f32 {
+    0.95
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawEmitter {
+    preset: String,
+    count: u32,
+    pos: [f32; 2],
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawInteraction {
+    a: String,
+    b: String,
+    #[serde(default = "default_true")]
+    resolve: bool,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+/// Reads and builds a scene file.
+pub fn load(path: &Path) -> Result<World, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+        file: path.to_path_buf(),
+        line: 0,
+        field: "file".into(),
+        message: e.to_string(),
+    })?;
+    parse(&text, path, &[])
+}
+
+/// Builds a scene from its text; `file` names it in errors. `overrides` are `NAME=VALUE`
+/// assignments to `[world]` fields applied after the file's (the `--set` flag).
+pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, SceneError> {
+    let ctx = Ctx { text, file };
+    let scene: SceneFile = toml::from_str(text).map_err(|e| ctx.parse_error(&e))?;
+
+    let mut config = scene.world.as_ref().map(|w| w.get_ref().clone()).unwrap_or_default();
+    config.validate().map_err(|e| match &e {
+        crate::dynamics::config::ConfigError::Invalid { name, .. } => {
+            let span = scene.world.as_ref().map(|t| t.span()).unwrap_or(0..0);
+            ctx.field_error("world", span, name, &e.to_string())
+        }
+        other => ctx.field_error("world", 0..0, "world", &other.to_string()),
+    })?;
+    for assignment in overrides {
+        config.set_from_str(assignment).map_err(|e| SceneError {
+            file: PathBuf::from("--set"),
+            line: 0,
+            field: assignment.split('=').next().unwrap_or(assignment).trim().to_string(),
+            message: e.to_string(),
+        })?;
+    }
+
+    let mut world = World::new(config);
+
+    for (name, preset) in &scene.preset {
+        if let Some(field) = preset.get_ref().non_finite_field() {
+            return Err(ctx.field_error(&format!("preset.{name}"), preset.span(), field, "is not finite"));
+        }
+        world.presets_mut().insert(name, preset.get_ref().clone());
+    }
+
+    for (i, raw) in scene.body.iter().enumerate() {
+        let table = format!("body[{i}]");
+        let span = raw.span();
+        let raw = raw.get_ref();
+        let id = raw.id.clone().unwrap_or_else(|| format!("body/{i}"));
+        let shape = shape_of(raw.shape, raw.size, raw.radius).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        let def = BodyDef {
+            id,
+            group: raw.group.clone(),
+            shape,
+            pos: DVec2::from(raw.pos),
+            vel: DVec2::from(raw.vel),
+            mass: raw.mass,
+            restitution: raw.restitution,
+            friction: raw.friction,
+            gravity: raw.gravity.map(DVec2::from),
+            behavior: behavior_of(raw.behavior, DVec2::from(raw.vel)),
+        };
+        add(&mut world, def, &ctx, &table, span)?;
+    }
+
+    for (i, raw) in scene.generate.iter().enumerate() {
+        let table = format!("generate[{i}]");
+        let span = raw.span();
+        let g = raw.get_ref();
+        let shape = shape_of(g.shape, g.size, g.radius).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        let positions = generate(g, shape).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        for (k, pos) in positions.into_iter().enumerate() {
+            let def = BodyDef {
+                id: format!("{}/{k}", g.id),
+                group: g.group.clone(),
+                shape,
+                pos,
+                vel: DVec2::from(g.vel),
+                mass: g.mass,
+                restitution: g.restitution,
+                friction: g.friction,
+                gravity: g.gravity.map(DVec2::from),
+                behavior: behavior_of(g.behavior, DVec2::from(g.vel)),
+            };
+            add(&mut world, def, &ctx, &table, span.clone())?;
+        }
+    }
+
+    for (i, raw) in scene.particle.iter().enumerate() {
+        let p = raw.get_ref();
+        let def = ParticleDef {
+            pos: Vec2::from(p.pos),
+            vel: Vec2::from(p.vel),
+            life: p.life,
+            size: p.size,
+            color: Vec4::from(p.color),
+            final_color: Vec4::from(p.final_color.unwrap_or(p.color)),
+            size_delta: p.size_delta,
+            drag: p.drag,
+            gravity: p.gravity.map(Vec2::from),
+        };
+        def.validate()
+            .map_err(|e| ctx.field_error(&format!("particle[{i}]"), raw.span(), e.field, &e.reason))?;
+        world.add_particle(&def).expect("validated above");
+    }
+
+    for (i, raw) in scene.emitter.iter().enumerate() {
+        let e = raw.get_ref();
+        let table = format!("emitter[{i}]");
+        if world.presets().get(&e.preset).is_none() {
+            let known = world.presets().names().collect::<Vec<_>>().join(", ");
+            return Err(ctx.field_error(&table, raw.span(), "preset", &format!("unknown preset `{}` (known: {known})", e.preset)));
+        }
+        world
+            .add_emitter(&e.preset, e.count, Vec2::from(e.pos))
+            .map_err(|err| ctx.field_error(&table, raw.span(), "pos", &err.to_string()))?;
+    }
+
+    for (i, raw) in scene.interact.iter().enumerate() {
+        let it = raw.get_ref();
+        world
+            .add_interaction(&it.a, &it.b, it.resolve)
+            .map_err(|e| ctx.field_error(&format!("interact[{i}]"), raw.span(), "b", &e.to_string()))?;
+    }
+    Ok(world)
+}
+
+fn add(world: &mut World, def: BodyDef, ctx: &Ctx, table: &str, span: std::ops::Range<usize>) -> Result<(), SceneError> {
+    let id = def.id.clone();
+    world.add_body(def).map(|_| ()).map_err(|e| match e {
+        crate::world::WorldError::Body { source, .. } => {
+            ctx.field_error(table, span, source.field, &format!("body `{id}`: {}", source.reason))
+        }
+        other => ctx.field_error(table, span, "id", &other.to_string()),
+    })
+}
+
+fn shape_of(kind: ShapeKind, size: Option<[f64; 2]>, radius: Option<f64>) -> Result<Shape, (&'static str, String)> {
+    match (kind, size, radius) {
+        (ShapeKind::Rect, Some([w, h]), None) => Ok(Shape::rect(w, h)),
+        (ShapeKind::Circle, None, Some(r)) => Ok(Shape::circle(r)),
+        (ShapeKind::Rect, None, _) => Err(("size", "a rect needs size = [width, height]".into())),
+        (ShapeKind::Rect, Some(_), Some(_)) => Err(("radius", "a rect has a size, not a radius".into())),
+        (ShapeKind::Circle, _, None) => Err(("radius", "a circle needs radius = r".into())),
+        (ShapeKind::Circle, Some(_), Some(_)) => Err(("size", "a circle has a radius, not a size".into())),
+    }
+}
+
+fn behavior_of(kind: Option<BehaviorKind>, vel: DVec2) -> Behavior {
+    match kind {
+        None | Some(BehaviorKind::None) => Behavior::None,
+        Some(BehaviorKind::Hero) => Behavior::Hero { held: Held::default() },
+        Some(BehaviorKind::Minion) => Behavior::Patrol {
+            speed: if vel.x != 0.0 { vel.x.abs() } else { behavior::MINION_SPEED },
+            dir: if vel.x < 0.0 { -1.0 } else { 1.0 },
+        },
+        Some(BehaviorKind::DumbMinion) => Behavior::DumbMinion,
+    }
+}
+
+/// The largest number of bodies one generator may make.
+const MAX_GENERATED: u64 = 10_000_000;
+
+fn generate(g: &RawGenerator, shape: Shape) -> Result<Vec<DVec2>, (&'static str, String)> {
+    let need = |field: &'static str, v: Option<u32>| v.ok_or((field, format!("a {:?} generator needs `{field}`", g.kind).to_lowercase()));
+    let size = shape.size();
+    let finite = |field: &'static str, v: [f64; 2]| {
+        if DVec2::from(v).is_finite() {
+            Ok(DVec2::from(v))
+        } else {
+            Err((field, "is not finite".to_string()))
+        }
+    };
+    if !g.gap.is_finite() {
+        return Err(("gap", "is not finite".into()));
+    }
+    let count_check = |n: u64| {
+        if n > MAX_GENERATED {
+            Err(("count", format!("{n} bodies is more than {MAX_GENERATED}")))
+        } else {
+            Ok(())
+        }
+    };
+    let mut out = Vec::new();
+    match g.kind {
+        GeneratorKind::Row => {
+            let (start, step) = (finite("start", g.start)?, finite("step", g.step.ok_or(("step", "a row generator needs `step`".to_string()))?)?);
+            let n = need("count", g.count)?;
+            count_check(n as u64)?;
+            out.extend((0..n).map(|k| start + step * k as f64));
+        }
+        GeneratorKind::Grid => {
+            let (start, step) = (finite("start", g.start)?, finite("step", g.step.unwrap_or([size.x, size.y]))?);
+            let (cols, rows) = (need("cols", g.cols)?, need("rows", g.rows)?);
+            count_check(cols as u64 * rows as u64)?;
+            for r in 0..rows {
+                for c in 0..cols {
+                    out.push(start + DVec2::new(c as f64 * step.x, r as f64 * step.y));
+                }
+            }
+        }
+        GeneratorKind::Stack => {
+            let base = finite("base", g.base)?;
+            let n = need("count", g.count)?;
+            count_check(n as u64)?;
+            out.extend((0..n).map(|k| base + DVec2::new(0.0, size.y * 0.5 + k as f64 * (size.y + g.gap))));
+        }
+        GeneratorKind::Pyramid => {
+            let base = finite("base", g.base)?;
+            let levels = need("levels", g.levels)?;
+            count_check(levels as u64 * (levels as u64 + 1) / 2)?;
+            for level in 0..levels {
+                let n = levels - level;
+                let y = base.y + size.y * 0.5 + level as f64 * (size.y + g.gap);
+                for i in 0..n {
+                    let x = base.x + (i as f64 - (n - 1) as f64 * 0.5) * (size.x + g.gap);
+                    out.push(DVec2::new(x, y));
+                }
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The scene's text and name, for locating errors.
+struct Ctx<'a> {
+    text: &'a str,
+    file: &'a Path,
+}
+
+impl Ctx<'_> {
+    fn line_of(&self, offset: usize) -> usize {
+        let offset = offset.min(self.text.len());
+        self.text[..offset].bytes().filter(|&b| b == b'\n').count() + 1
+    }
+
+    /// The line of `field = ...` inside the span of a table, or the table's first line.
+    fn field_line(&self, span: &std::ops::Range<usize>, field: &str) -> usize {
+        let (start, end) = (span.start.min(self.text.len()), span.end.min(self.text.len()));
+        let mut offset = start;
+        for line in self.text[start..end].split_inclusive('\n') {
+            let trimmed = line.trim_start();
+            if let Some(rest) = trimmed.strip_prefix(field) {
+                if rest.trim_start().starts_with('=') {
+                    return self.line_of(offset);
+                }
+            }
+            offset += line.len();
+        }
+        // A field left out: point at the table's header, the line before its body.
+        let line = self.line_of(start);
+        let header = self.text[..start].trim_end().rfind('\n').map_or(1, |i| self.line_of(i + 1));
+        if self.text[..start].trim_end().ends_with(']') {
+            header
+        } else {
+            line
+        }
+    }
+
+    fn field_error(&self, table: &str, span: std::ops::Range<usize>, field: &str, message: &str) -> SceneError {
+        SceneError {
+            file: self.file.to_path_buf(),
+            line: self.field_line(&span, field),
+            field: format!("{table}.{field}"),
+            message: message.to_string(),
+        }
+    }
+
+    fn parse_error(&self, e: &toml::de::Error) -> SceneError {
+        let (line, field) = match e.span() {
+            Some(span) => {
+                let line = self.line_of(span.start);
+                let text_line = self.text.lines().nth(line - 1).unwrap_or("");
+                let key = text_line
+                    .split_once('=')
+                    .map(|(k, _)| k.trim().to_string())
+                    .filter(|k| !k.is_empty() && !k.starts_with('['));
+                let field = key
+                    .or_else(|| backticked(e.message()).map(str::to_string))
+                    .unwrap_or_else(|| text_line.trim().to_string());
+                (line, field)
+            }
+            None => (0, backticked(e.message()).unwrap_or("scene").to_string()),
+        };
+        SceneError {
+            file: self.file.to_path_buf(),
+            line,
+            field,
+            message: e.message().trim().to_string(),
+        }
+    }
+}
+
+/// The first `name` in backticks of a serde message ("unknown field `siz`").
+fn backticked(message: &str) -> Option<&str> {
+    let start = message.find('`')? + 1;
+    let len = message[start..].find('`')?;
+    Some(&message[start..start + len])
+}

@@ -1,0 +1,682 @@
+//! The world: bodies in groups, particles, emitters, the declared interactions, one
+//! seeded random generator, and the step that ties them together.
+//!
+//! A step runs in the chapter's order: move every body (demo behaviours, then
+//! integration), then every particle (removing the expired, then emitting), then the
+//! declared interactions in their order, each rigid pair of groups with its own
+//! relaxation loop and each particle pair by projection. Nothing is computed for what
+//! no interaction names.
+
+use glam::{DVec2, Vec2};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::action::{Action, ActionError, ActionOutcome, MAX_PARTICLES_PER_ACTION};
+use crate::behavior::{self, Behavior, Held};
+use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
+use crate::dynamics::config::WorldConfig;
+use crate::dynamics::integrate::integrate_bodies;
+use crate::dynamics::relaxation::{self, RelaxationParams};
+use crate::geometry::{collide, Shape};
+use crate::particles::{Emitter, ParticleDef, Particles, PresetLibrary};
+
+/// One side of an interaction: a group of bodies or the particle system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    Group(GroupId),
+    Particles,
+}
+
+/// A declared interaction, tested every step in declaration order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Interaction {
+    pub a: Side,
+    pub b: Side,
+    /// false: collisions are only flagged (the bounds demo), nothing moves.
+    pub resolve: bool,
+}
+
+/// The name a scene uses for the particle side of an interaction.
+pub const PARTICLES: &str = "particles";
+
+/// A named group and its members (indices into the body array, in body order).
+#[derive(Clone, Debug, Default)]
+struct Group {
+    name: String,
+    members: Vec<u32>,
+}
+
+/// What one step did: the figures a frame reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Rigid pair resolutions (or detections, in detect-only interactions).
+    pub contacts: u64,
+    /// Relaxation passes run, summed over interactions.
+    pub relaxation_iterations: u64,
+    /// Deepest rigid penetration detected.
+    pub deepest_penetration: f64,
+    /// Particles projected out of shapes.
+    pub particle_contacts: u64,
+    /// Kinetic energy of the rigid bodies after the step.
+    pub kinetic_energy: f64,
+}
+
+/// Why a body or particle could not be added.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorldError {
+    #[error("body `{id}`: {source}")]
+    Body {
+        id: String,
+        #[source]
+        source: crate::dynamics::body::BodyError,
+    },
+    #[error("a body with id `{0}` already exists")]
+    DuplicateId(String),
+    #[error("particle: {0}")]
+    Particle(#[from] crate::particles::system::ParticleError),
+    #[error("unknown particle preset `{0}`")]
+    UnknownPreset(String),
+    #[error("interaction: {0}")]
+    Interaction(String),
+}
+
+/// A simulated world.
+#[derive(Clone, Debug)]
+pub struct World {
+    pub config: WorldConfig,
+    bodies: Vec<Body>,
+    groups: Vec<Group>,
+    interactions: Vec<Interaction>,
+    particles: Particles,
+    emitters: Vec<Emitter>,
+    presets: PresetLibrary,
+    rng: ChaCha8Rng,
+    frame: u64,
+    next_key: u32,
+    spawned: u64,
+    selected: Option<BodyKey>,
+    stats: StepStats,
+}
+
+impl World {
+    /// An empty world with the given parameters and the built-in presets.
+    pub fn new(config: WorldConfig) -> Self {
+        let rng = ChaCha8Rng::seed_from_u64(config.seed);
+        World {
+            config,
+            bodies: Vec::new(),
+            groups: Vec::new(),
+            interactions: Vec::new(),
+            particles: Particles::default(),
+            emitters: Vec::new(),
+            presets: PresetLibrary::built_in(),
+            rng,
+            frame: 0,
+            next_key: 0,
+            spawned: 0,
+            selected: None,
+            stats: StepStats::default(),
+        }
+    }
+
+    // ---- reading -------------------------------------------------------------------
+
+    /// Steps taken so far.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Simulated seconds so far.
+    pub fn time(&self) -> f64 {
+        self.frame as f64 * self.config.dt
+    }
+
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    pub fn particles(&self) -> &Particles {
+        &self.particles
+    }
+
+    pub fn emitters(&self) -> &[Emitter] {
+        &self.emitters
+    }
+
+    pub fn interactions(&self) -> &[Interaction] {
+        &self.interactions
+    }
+
+    pub fn presets(&self) -> &PresetLibrary {
+        &self.presets
+    }
+
+    pub fn presets_mut(&mut self) -> &mut PresetLibrary {
+        &mut self.presets
+    }
+
+    /// The figures of the last step.
+    pub fn stats(&self) -> StepStats {
+        self.stats
+    }
+
+    pub fn body(&self, id: &str) -> Option<&Body> {
+        self.bodies.iter().find(|b| b.id == id)
+    }
+
+    pub fn group_name(&self, group: GroupId) -> &str {
+        &self.groups[group as usize].name
+    }
+
+    /// The group's id, if any body or interaction has named it.
+    pub fn group(&self, name: &str) -> Option<GroupId> {
+        self.groups.iter().position(|g| g.name == name).map(|i| i as GroupId)
+    }
+
+    /// The selected body's id.
+    pub fn selected(&self) -> Option<&str> {
+        let key = self.selected?;
+        self.bodies.iter().find(|b| b.key == key).map(|b| b.id.as_str())
+    }
+
+    /// Total kinetic energy of the rigid bodies.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.bodies.iter().map(Body::kinetic_energy).sum()
+    }
+
+    // ---- building ------------------------------------------------------------------
+
+    /// The group's id, creating the group if needed.
+    pub fn group_or_insert(&mut self, name: &str) -> GroupId {
+        if let Some(g) = self.group(name) {
+            return g;
+        }
+        self.groups.push(Group {
+            name: name.to_string(),
+            members: Vec::new(),
+        });
+        (self.groups.len() - 1) as GroupId
+    }
+
+    /// Adds a body. Its id must be unique; every number is checked.
+    pub fn add_body(&mut self, def: BodyDef) -> Result<BodyKey, WorldError> {
+        def.validate().map_err(|source| WorldError::Body {
+            id: def.id.clone(),
+            source,
+        })?;
+        if self.body(&def.id).is_some() {
+            return Err(WorldError::DuplicateId(def.id));
+        }
+        let group = self.group_or_insert(&def.group);
+        let key = BodyKey(self.next_key);
+        self.next_key += 1;
+        let index = self.bodies.len() as u32;
+        self.bodies.push(Body {
+            pos: def.pos,
+            vel: def.vel,
+            shape: def.shape,
+            inv_mass: def.inv_mass(),
+            restitution: def.restitution,
+            friction: def.friction,
+            collided: false,
+            gravity: def.gravity,
+            group,
+            key,
+            behavior: def.behavior,
+            id: def.id,
+        });
+        self.groups[group as usize].members.push(index);
+        Ok(key)
+    }
+
+    /// Adds a particle.
+    pub fn add_particle(&mut self, def: &ParticleDef) -> Result<(), WorldError> {
+        def.validate()?;
+        self.particles.push(def, self.config.particle_gravity.as_vec2());
+        Ok(())
+    }
+
+    /// Starts an emitter of `count` particles of `preset` at `pos`.
+    pub fn add_emitter(&mut self, preset: &str, count: u32, pos: Vec2) -> Result<(), WorldError> {
+        if self.presets.get(preset).is_none() {
+            return Err(WorldError::UnknownPreset(preset.to_string()));
+        }
+        if !pos.is_finite() {
+            return Err(WorldError::Interaction(format!("emitter position {pos} is not finite")));
+        }
+        self.emitters.push(Emitter {
+            pos,
+            remaining: count,
+            preset: preset.to_string(),
+        });
+        Ok(())
+    }
+
+    /// Declares an interaction between two groups, or a group and [`PARTICLES`].
+    pub fn add_interaction(&mut self, a: &str, b: &str, resolve: bool) -> Result<(), WorldError> {
+        let side = |w: &mut World, name: &str| {
+            if name == PARTICLES {
+                Side::Particles
+            } else {
+                Side::Group(w.group_or_insert(name))
+            }
+        };
+        let (sa, sb) = (side(self, a), side(self, b));
+        if sa == Side::Particles && sb == Side::Particles {
+            return Err(WorldError::Interaction(
+                "particles do not collide with each other; pair `particles` with a group of bodies".into(),
+            ));
+        }
+        self.interactions.push(Interaction { a: sa, b: sb, resolve });
+        Ok(())
+    }
+
+    /// A fresh id `<prefix>-<n>` that no body uses.
+    fn fresh_id(&mut self, prefix: &str) -> String {
+        loop {
+            self.spawned += 1;
+            let id = format!("{prefix}-{}", self.spawned);
+            if self.body(&id).is_none() {
+                return id;
+            }
+        }
+    }
+
+    /// Removes the bodies for which `remove` is true, keeping the order of the rest.
+    fn remove_bodies(&mut self, remove: impl Fn(&Body) -> bool) {
+        let before = self.bodies.len();
+        self.bodies.retain(|b| !remove(b));
+        if self.bodies.len() != before {
+            self.rebuild_groups();
+        }
+    }
+
+    fn rebuild_groups(&mut self) {
+        for g in &mut self.groups {
+            g.members.clear();
+        }
+        for (i, b) in self.bodies.iter().enumerate() {
+            self.groups[b.group as usize].members.push(i as u32);
+        }
+    }
+
+    // ---- stepping ------------------------------------------------------------------
+
+    /// Advances the world by one fixed step.
+    pub fn step(&mut self) {
+        let mut stats = StepStats::default();
+        for b in &mut self.bodies {
+            b.collided = false;
+        }
+
+        // Move every body: behaviours, then integration.
+        self.run_behaviors();
+        integrate_bodies(&mut self.bodies, &self.config);
+        self.explode_dye_packs_on_hero();
+
+        // Move every particle, removing the expired, then emit.
+        if !self.particles.is_empty() {
+            self.particles.update(self.config.dt as f32);
+        }
+        self.run_emitters();
+
+        // The declared interactions, in order.
+        let params = RelaxationParams {
+            iterations: self.config.relaxation_iterations,
+            correction_rate: self.config.correction_rate,
+        };
+        for inter in &self.interactions {
+            match (inter.a, inter.b) {
+                (Side::Group(a), Side::Group(b)) => {
+                    let (ga, gb) = (&self.groups[a as usize].members, &self.groups[b as usize].members);
+                    if ga.is_empty() || gb.is_empty() {
+                        continue;
+                    }
+                    let report = if inter.resolve {
+                        relaxation::relax(&mut self.bodies, ga, gb, params)
+                    } else {
+                        relaxation::detect_only(&mut self.bodies, ga, gb)
+                    };
+                    stats.contacts += report.contacts;
+                    stats.relaxation_iterations += report.iterations as u64;
+                    stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+                }
+                (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g)) => {
+                    if self.particles.is_empty() || !inter.resolve {
+                        continue;
+                    }
+                    for &i in &self.groups[g as usize].members {
+                        let body = &self.bodies[i as usize];
+                        let centre = body.pos.as_vec2();
+                        stats.particle_contacts += match body.shape {
+                            Shape::Rect { half } => self.particles.project_out_of_rect(centre, half.as_vec2()),
+                            Shape::Circle { radius } => {
+                                self.particles.project_out_of_circle(centre, radius as f32)
+                            }
+                        };
+                    }
+                }
+                (Side::Particles, Side::Particles) => {}
+            }
+        }
+
+        stats.kinetic_energy = self.kinetic_energy();
+        self.stats = stats;
+        self.frame += 1;
+    }
+
+    /// Runs `n` steps.
+    pub fn step_n(&mut self, n: u64) {
+        for _ in 0..n {
+            self.step();
+        }
+    }
+
+    fn hero_pos(&self) -> Option<DVec2> {
+        self.bodies
+            .iter()
+            .find(|b| matches!(b.behavior, Behavior::Hero { .. }))
+            .map(|b| b.pos)
+    }
+
+    fn run_behaviors(&mut self) {
+        let dt = self.config.dt;
+        let hero = self.hero_pos();
+        let mut expired_packs = false;
+        for b in &mut self.bodies {
+            let movable = !b.is_static();
+            match &mut b.behavior {
+                Behavior::None | Behavior::DumbMinion => {}
+                Behavior::Hero { held } => {
+                    if movable {
+                        b.vel += held.push() * dt;
+                    }
+                }
+                Behavior::Patrol { speed, dir } => {
+                    // A collision that reversed the motion turns the patrol back.
+                    if b.vel.x != 0.0 && b.vel.x.signum() != *dir {
+                        *dir = b.vel.x.signum();
+                    }
+                    b.vel = DVec2::new(*dir * *speed, 0.0);
+                }
+                Behavior::DyePack { heading, life } => {
+                    if let Some(target) = hero {
+                        *heading = behavior::turn_toward(*heading, target - b.pos, behavior::DYE_PACK_TURN_RATE);
+                    }
+                    b.pos += *heading * (behavior::DYE_PACK_SPEED * dt);
+                    *life = life.saturating_sub(1);
+                    expired_packs |= *life == 0;
+                }
+            }
+        }
+        if expired_packs {
+            self.remove_bodies(|b| matches!(b.behavior, Behavior::DyePack { life: 0, .. }));
+        }
+    }
+
+    /// Dye packs touching the hero are removed, each starting an explosion where it was.
+    fn explode_dye_packs_on_hero(&mut self) {
+        let Some(hero) = self.bodies.iter().find(|b| matches!(b.behavior, Behavior::Hero { .. })) else {
+            return;
+        };
+        let (hero_shape, hero_pos) = (hero.shape, hero.pos);
+        let hits: Vec<BodyKey> = self
+            .bodies
+            .iter()
+            .filter(|b| matches!(b.behavior, Behavior::DyePack { .. }))
+            .filter(|b| collide(&hero_shape, hero_pos, &b.shape, b.pos).is_some())
+            .map(|b| b.key)
+            .collect();
+        if hits.is_empty() {
+            return;
+        }
+        for key in &hits {
+            let pos = self.bodies.iter().find(|b| b.key == *key).expect("hit is alive").pos;
+            if self.presets.get(behavior::DYE_PACK_EXPLOSION_PRESET).is_some() {
+                self.emitters.push(Emitter {
+                    pos: pos.as_vec2(),
+                    remaining: behavior::DYE_PACK_EXPLOSION,
+                    preset: behavior::DYE_PACK_EXPLOSION_PRESET.to_string(),
+                });
+            }
+        }
+        self.remove_bodies(|b| hits.contains(&b.key));
+    }
+
+    fn run_emitters(&mut self) {
+        if self.emitters.is_empty() {
+            return;
+        }
+        let gravity = self.config.particle_gravity.as_vec2();
+        for e in &mut self.emitters {
+            let n = e.take_batch(&mut self.rng);
+            let preset = self.presets.get(&e.preset).expect("emitter presets are checked when added");
+            for _ in 0..n {
+                let def = preset.spawn(e.pos, &mut self.rng);
+                self.particles.push(&def, gravity);
+            }
+        }
+        self.emitters.retain(|e| !e.expired());
+    }
+
+    // ---- actions -------------------------------------------------------------------
+
+    /// Applies an action between steps. A refused action changes nothing.
+    pub fn apply(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
+        let point = |field: &'static str, p: [f64; 2]| -> Result<DVec2, ActionError> {
+            let v = DVec2::from(p);
+            if v.is_finite() && v.abs().max_element() <= crate::dynamics::body::MAX_COORDINATE {
+                Ok(v)
+            } else {
+                Err(ActionError::BadArgument {
+                    field,
+                    reason: format!("{v} must be finite and within ±{}", crate::dynamics::body::MAX_COORDINATE),
+                })
+            }
+        };
+        let none = Ok(ActionOutcome::default());
+        match action {
+            Action::Press { dir } | Action::Release { dir } => {
+                let pressed = matches!(action, Action::Press { .. });
+                let hero = self
+                    .bodies
+                    .iter_mut()
+                    .find_map(|b| match &mut b.behavior {
+                        Behavior::Hero { held } => Some(held),
+                        _ => None,
+                    })
+                    .ok_or(ActionError::NoHero)?;
+                hero.set(*dir, pressed);
+                none
+            }
+            Action::FireDyePack { at } => {
+                let at = point("at", *at)?;
+                let id = self.fresh_id("dye_pack");
+                self.spawn(BodyDef {
+                    id: id.clone(),
+                    group: "dye_packs".into(),
+                    shape: Shape::circle(behavior::DYE_PACK_RADIUS),
+                    pos: at,
+                    mass: behavior::DYE_PACK_MASS,
+                    gravity: Some(DVec2::ZERO),
+                    behavior: Behavior::DyePack {
+                        heading: DVec2::Y,
+                        life: behavior::DYE_PACK_LIFE,
+                    },
+                    ..BodyDef::default()
+                })
+            }
+            Action::SpawnMinion { at, shape } => {
+                let at = point("at", *at)?;
+                let shape = match shape.as_deref() {
+                    None | Some("circle") => Shape::circle(behavior::MINION_RADIUS),
+                    Some("rect") => Shape::rect(behavior::MINION_RECT.x, behavior::MINION_RECT.y),
+                    Some(other) => {
+                        return Err(ActionError::BadArgument {
+                            field: "shape",
+                            reason: format!("`{other}` is not \"circle\" or \"rect\""),
+                        })
+                    }
+                };
+                let dir = if self.rng.random::<bool>() { 1.0 } else { -1.0 };
+                let id = self.fresh_id("minion");
+                self.spawn(BodyDef {
+                    id,
+                    group: "minions".into(),
+                    shape,
+                    pos: at,
+                    vel: DVec2::new(dir * behavior::MINION_SPEED, 0.0),
+                    mass: behavior::MINION_MASS,
+                    friction: 0.0,
+                    gravity: Some(DVec2::ZERO),
+                    behavior: Behavior::Patrol {
+                        speed: behavior::MINION_SPEED,
+                        dir,
+                    },
+                    ..BodyDef::default()
+                })
+            }
+            Action::SpawnDumbMinion { at } => {
+                let at = point("at", *at)?;
+                let shape = if self.rng.random::<bool>() {
+                    Shape::circle(behavior::MINION_RADIUS)
+                } else {
+                    Shape::rect(behavior::MINION_RECT.x, behavior::MINION_RECT.y)
+                };
+                let id = self.fresh_id("dumb_minion");
+                self.spawn(BodyDef {
+                    id,
+                    group: "dumb_minions".into(),
+                    shape,
+                    pos: at,
+                    behavior: Behavior::DumbMinion,
+                    ..BodyDef::default()
+                })
+            }
+            Action::Select { at, group } => {
+                let at = point("at", *at)?;
+                let group = match group {
+                    Some(name) => Some(self.group(name).ok_or_else(|| ActionError::UnknownGroup(name.clone()))?),
+                    None => None,
+                };
+                // The last body drawn over the point wins: the one on top.
+                let hit = self
+                    .bodies
+                    .iter()
+                    .rev()
+                    .filter(|b| group.map_or(!b.is_static(), |g| b.group == g))
+                    .find(|b| b.shape.contains(b.pos, at) || b.pos == at);
+                self.selected = hit.map(|b| b.key);
+                Ok(ActionOutcome {
+                    ids: hit.map(|b| vec![b.id.clone()]).unwrap_or_default(),
+                })
+            }
+            Action::Drag { to } => {
+                let to = point("to", *to)?;
+                let key = self.selected.ok_or(ActionError::NothingSelected)?;
+                let body = self
+                    .bodies
+                    .iter_mut()
+                    .find(|b| b.key == key)
+                    .ok_or(ActionError::NothingSelected)?;
+                body.pos = to;
+                body.vel = DVec2::ZERO;
+                Ok(ActionOutcome { ids: vec![body.id.clone()] })
+            }
+            Action::Deselect => {
+                self.selected = None;
+                none
+            }
+            Action::Agitate { strength } => {
+                let s = strength.unwrap_or(behavior::DEFAULT_AGITATION);
+                if !(s.is_finite() && s >= 0.0 && s <= crate::dynamics::body::MAX_COORDINATE) {
+                    return Err(ActionError::BadArgument {
+                        field: "strength",
+                        reason: format!("{s} must be a finite number, 0 or above"),
+                    });
+                }
+                let mut ids = Vec::new();
+                for b in &mut self.bodies {
+                    if matches!(b.behavior, Behavior::DumbMinion) && !b.is_static() {
+                        let kick = DVec2::new(self.rng.random_range(-1.0..=1.0), self.rng.random_range(-1.0..=1.0));
+                        b.vel += kick * s;
+                        ids.push(b.id.clone());
+                    }
+                }
+                Ok(ActionOutcome { ids })
+            }
+            Action::Clear { group } => {
+                let g = self.group(group).ok_or_else(|| ActionError::UnknownGroup(group.clone()))?;
+                let ids = self.bodies.iter().filter(|b| b.group == g).map(|b| b.id.clone()).collect();
+                self.remove_bodies(|b| b.group == g);
+                Ok(ActionOutcome { ids })
+            }
+            Action::SpawnParticles { preset, at, count } => {
+                let at = point("at", *at)?.as_vec2();
+                check_count(*count)?;
+                let gravity = self.config.particle_gravity.as_vec2();
+                let recipe = self.presets.get(preset).ok_or_else(|| self.unknown_preset(preset))?;
+                for _ in 0..*count {
+                    let def = recipe.spawn(at, &mut self.rng);
+                    self.particles.push(&def, gravity);
+                }
+                none
+            }
+            Action::StartEmitter { preset, count, at } => {
+                let at = point("at", *at)?.as_vec2();
+                check_count(*count)?;
+                if self.presets.get(preset).is_none() {
+                    return Err(self.unknown_preset(preset));
+                }
+                self.emitters.push(Emitter {
+                    pos: at,
+                    remaining: *count,
+                    preset: preset.clone(),
+                });
+                none
+            }
+            Action::Set { name, value } => {
+                let before = self.config.seed;
+                self.config.set(name, value)?;
+                if self.config.seed != before {
+                    self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
+                }
+                none
+            }
+        }
+    }
+
+    fn spawn(&mut self, def: BodyDef) -> Result<ActionOutcome, ActionError> {
+        let id = def.id.clone();
+        self.add_body(def).map_err(|e| ActionError::BadArgument {
+            field: "at",
+            reason: e.to_string(),
+        })?;
+        Ok(ActionOutcome { ids: vec![id] })
+    }
+
+    fn unknown_preset(&self, name: &str) -> ActionError {
+        ActionError::UnknownPreset {
+            name: name.to_string(),
+            known: self.presets.names().collect::<Vec<_>>().join(", "),
+        }
+    }
+}
+
+fn check_count(count: u32) -> Result<(), ActionError> {
+    if count > MAX_PARTICLES_PER_ACTION {
+        return Err(ActionError::BadArgument {
+            field: "count",
+            reason: format!("{count} is more than {MAX_PARTICLES_PER_ACTION} particles at once"),
+        });
+    }
+    Ok(())
+}
+
+/// Everything observable about a hero for tests and tools.
+pub fn hero_held(world: &World) -> Option<Held> {
+    world.bodies().iter().find_map(|b| match b.behavior {
+        Behavior::Hero { held } => Some(held),
+        _ => None,
+    })
+}
