@@ -1,1 +1,201 @@
+//! End to end: the `ricochet-server simulate` contract, through the real binary.
 
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use ricochet_protocol::dump::{read_dump, FrameRecord};
+
+/// The server binary built next to this test (`cargo test --workspace` builds it).
+fn server_bin() -> PathBuf {
+    let exe = std::env::current_exe().expect("test binary path");
+    let dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps");
+    let bin = dir.join(format!("ricochet-server{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        bin.exists(),
+        "{} is missing: run the tests with `cargo test --workspace`, which builds it",
+        bin.display()
+    );
+    bin
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scene(name: &str) -> PathBuf {
+    root().join("assets/scenes").join(name)
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ricochet-headless-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn simulate(args: &[&str]) -> Output {
+    Command::new(server_bin())
+        .arg("simulate")
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("ricochet-server starts")
+}
+
+fn simulate_ok(args: &[&str]) -> Output {
+    let out = simulate(args);
+    assert!(
+        out.status.success(),
+        "ricochet-server simulate {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn dump_of(
+    scene_name: &str,
+    steps: u64,
+    extra: &[&str],
+    file: &str,
+) -> (Vec<u8>, Vec<FrameRecord>) {
+    let path = tmp(file);
+    let scene_path = scene(scene_name);
+    let steps = steps.to_string();
+    let mut args = vec![
+        "--scene",
+        scene_path.to_str().unwrap(),
+        "--steps",
+        &steps,
+        "--dump",
+        path.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    simulate_ok(&args);
+    let bytes = std::fs::read(&path).unwrap();
+    let frames = read_dump(std::str::from_utf8(&bytes).unwrap()).unwrap();
+    (bytes, frames)
+}
+
+#[test]
+fn a_dump_has_one_line_per_state_from_frame_zero() {
+    let (_, frames) = dump_of("emitters.toml", 90, &[], "lines.jsonl");
+    assert_eq!(frames.len(), 91);
+    for (k, f) in frames.iter().enumerate() {
+        assert_eq!(f.frame, k as u64);
+        assert!(
+            (f.t - k as f64 / 60.0).abs() < 1e-6,
+            "t {} at frame {k}",
+            f.t
+        );
+    }
+    // Scene ids and generated ids: [[body]] tables first, then generators, in file order.
+    let first = &frames[0];
+    assert_eq!(first.bodies[0].id, "minion/0");
+    assert!(
+        first.body("hero").is_some()
+            && first.body("floor/8").is_some()
+            && first.body("row3/1").is_some()
+    );
+    assert_eq!(first.emitters, 1);
+    assert!(first.particles.is_empty());
+    // The emitter releases fire particles: red at birth.
+    let lit = &frames[1].particles;
+    assert!(!lit.is_empty());
+    assert!(lit.iter().all(|p| p.color == [1.0, 0.0, 0.0, 1.0]));
+    // The hero falls, lands and is flagged collided.
+    let hero_y: Vec<f64> = frames.iter().map(|f| f.body("hero").unwrap().y).collect();
+    assert!(hero_y[60] < hero_y[0]);
+    assert!(frames.iter().any(|f| f.body("hero").unwrap().collided));
+}
+
+#[test]
+fn the_same_scene_and_seed_give_the_same_dump_bit_for_bit() {
+    let (a, _) = dump_of("emitters.toml", 240, &["--seed", "7"], "det-a.jsonl");
+    let (b, _) = dump_of("emitters.toml", 240, &["--seed", "7"], "det-b.jsonl");
+    assert!(a == b, "two runs of the same scene and seed differ");
+    let (c, _) = dump_of("emitters.toml", 240, &["--seed", "8"], "det-c.jsonl");
+    assert!(a != c, "the seed does not change the particles");
+}
+
+#[test]
+fn set_overrides_a_world_field() {
+    let (_, frames) = dump_of("impulse.toml", 30, &["--set", "gravity=[0,0]"], "set.jsonl");
+    let hero = frames.last().unwrap().body("hero").unwrap();
+    assert_eq!(
+        (hero.y, hero.vy),
+        (60.0, 0.0),
+        "no gravity: the hero floats"
+    );
+}
+
+#[test]
+fn inputs_are_applied_at_their_frame_and_replay_identically() {
+    let inputs = tmp("inputs.jsonl");
+    std::fs::write(
+        &inputs,
+        concat!(
+            "# steer right, then fire a dye pack\n",
+            "{\"frame\": 60, \"action\": {\"do\": \"press\", \"dir\": \"right\"}}\n",
+            "{\"frame\": 90, \"action\": {\"do\": \"release\", \"dir\": \"right\"}}\n",
+            "{\"frame\": 90, \"action\": {\"do\": \"fire_dye_pack\", \"at\": [150, 80]}}\n",
+            "{\"frame\": 95, \"action\": {\"do\": \"clear\", \"group\": \"no_such_group\"}}\n",
+        ),
+    )
+    .unwrap();
+    let args = ["--inputs", inputs.to_str().unwrap()];
+    let (a, frames) = dump_of("emitters.toml", 150, &args, "in-a.jsonl");
+    let (b, _) = dump_of("emitters.toml", 150, &args, "in-b.jsonl");
+    assert!(a == b, "replaying the same inputs differs");
+    let x = |k: usize| frames[k].body("hero").unwrap().x;
+    assert_eq!(x(60), x(0), "nothing pushed the hero before frame 60");
+    assert!(
+        x(90) > x(60) + 5.0,
+        "held right for 30 frames: {} -> {}",
+        x(60),
+        x(90)
+    );
+    assert!(
+        frames[91].body("dye_pack-1").is_some(),
+        "the dye pack appears after frame 90"
+    );
+    assert!(frames[90].body("dye_pack-1").is_none());
+}
+
+#[test]
+fn a_bad_scene_is_refused_with_file_line_and_field() {
+    let bad = tmp("bad-scene.toml");
+    std::fs::write(
+        &bad,
+        "[world]\ndt = 0.01\n\n[[body]]\nid = \"b\"\nshape = \"circle\"\nradius = 0\n",
+    )
+    .unwrap();
+    let out = simulate(&["--scene", bad.to_str().unwrap(), "--steps", "1"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(&format!("{}:7: body[0].radius", bad.display())),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_bad_input_line_is_refused_with_its_line() {
+    let inputs = tmp("bad-inputs.jsonl");
+    std::fs::write(&inputs, "{\"frame\": 1, \"action\": {\"do\": \"press\", \"dir\": \"left\"}}\n{\"frame\": 2, \"action\": {\"do\": \"teleport\"}}\n").unwrap();
+    let out = simulate(&[
+        "--scene",
+        scene("impulse.toml").to_str().unwrap(),
+        "--steps",
+        "5",
+        "--inputs",
+        inputs.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(":2: not an input line") && err.contains("teleport"),
+        "{err}"
+    );
+}

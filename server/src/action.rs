@@ -53,7 +53,11 @@ pub enum Action {
         count: u32,
     },
     /// Starts an emitter of `count` particles of a preset at `at`.
-    StartEmitter { preset: String, count: u32, at: Point },
+    StartEmitter {
+        preset: String,
+        count: u32,
+        at: Point,
+    },
     /// Sets a world parameter by name (see [`crate::dynamics::WorldConfig::set`]).
     Set { name: String, value: toml::Value },
 }
@@ -98,11 +102,25 @@ mod tests {
         let a: Action = serde_json::from_str(r#"{"do":"fire_dye_pack","at":[50,60.5]}"#).unwrap();
         assert_eq!(a, Action::FireDyePack { at: [50.0, 60.5] });
         let a: Action = serde_json::from_str(r#"{"do":"press","dir":"left"}"#).unwrap();
-        assert_eq!(a, Action::Press { dir: Direction::Left });
-        let a: Action = serde_json::from_str(r#"{"do":"set","name":"gravity","value":[0,-10]}"#).unwrap();
+        assert_eq!(
+            a,
+            Action::Press {
+                dir: Direction::Left
+            }
+        );
+        let a: Action =
+            serde_json::from_str(r#"{"do":"set","name":"gravity","value":[0,-10]}"#).unwrap();
         assert!(matches!(a, Action::Set { .. }));
-        let a: Action = serde_json::from_str(r#"{"do":"spawn_particles","preset":"fire","at":[1,2]}"#).unwrap();
-        assert_eq!(a, Action::SpawnParticles { preset: "fire".into(), at: [1.0, 2.0], count: 1 });
+        let a: Action =
+            serde_json::from_str(r#"{"do":"spawn_particles","preset":"fire","at":[1,2]}"#).unwrap();
+        assert_eq!(
+            a,
+            Action::SpawnParticles {
+                preset: "fire".into(),
+                at: [1.0, 2.0],
+                count: 1
+            }
+        );
     }
 
     #[test]
@@ -113,7 +131,9 @@ mod tests {
             (r#"{"do":"press","dir":"sideways"}"#, "sideways"),
             (r#"{"do":"drag","to":[1,2],"speed":3}"#, "speed"),
         ] {
-            let e = serde_json::from_str::<Action>(text).unwrap_err().to_string();
+            let e = serde_json::from_str::<Action>(text)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(needle), "{text}: {e}");
         }
     }

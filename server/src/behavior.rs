@@ -106,7 +106,7 @@ pub const DEFAULT_AGITATION: f64 = 25.0;
 /// Turns `heading` toward `to_target` by `rate` of the angle between them ("rotateObjPointTo").
 pub fn turn_toward(heading: DVec2, to_target: DVec2, rate: f64) -> DVec2 {
     let len = to_target.length();
-    if !(len > 0.0) {
+    if len.is_nan() || len <= 0.0 {
         return heading;
     }
     let target = to_target / len;

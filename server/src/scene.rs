@@ -262,7 +262,11 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
     let ctx = Ctx { text, file };
     let scene: SceneFile = toml::from_str(text).map_err(|e| ctx.parse_error(&e))?;
 
-    let mut config = scene.world.as_ref().map(|w| w.get_ref().clone()).unwrap_or_default();
+    let mut config = scene
+        .world
+        .as_ref()
+        .map(|w| w.get_ref().clone())
+        .unwrap_or_default();
     config.validate().map_err(|e| match &e {
         crate::dynamics::config::ConfigError::Invalid { name, .. } => {
             let span = scene.world.as_ref().map(|t| t.span()).unwrap_or(0..0);
@@ -274,7 +278,12 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         config.set_from_str(assignment).map_err(|e| SceneError {
             file: PathBuf::from("--set"),
             line: 0,
-            field: assignment.split('=').next().unwrap_or(assignment).trim().to_string(),
+            field: assignment
+                .split('=')
+                .next()
+                .unwrap_or(assignment)
+                .trim()
+                .to_string(),
             message: e.to_string(),
         })?;
     }
@@ -283,7 +292,12 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
 
     for (name, preset) in &scene.preset {
         if let Some(field) = preset.get_ref().non_finite_field() {
-            return Err(ctx.field_error(&format!("preset.{name}"), preset.span(), field, "is not finite"));
+            return Err(ctx.field_error(
+                &format!("preset.{name}"),
+                preset.span(),
+                field,
+                "is not finite",
+            ));
         }
         world.presets_mut().insert(name, preset.get_ref().clone());
     }
@@ -293,7 +307,8 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         let span = raw.span();
         let raw = raw.get_ref();
         let id = raw.id.clone().unwrap_or_else(|| format!("body/{i}"));
-        let shape = shape_of(raw.shape, raw.size, raw.radius).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        let shape = shape_of(raw.shape, raw.size, raw.radius)
+            .map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
         let def = BodyDef {
             id,
             group: raw.group.clone(),
@@ -313,8 +328,10 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         let table = format!("generate[{i}]");
         let span = raw.span();
         let g = raw.get_ref();
-        let shape = shape_of(g.shape, g.size, g.radius).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
-        let positions = generate(g, shape).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        let shape = shape_of(g.shape, g.size, g.radius)
+            .map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        let positions =
+            generate(g, shape).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
         for (k, pos) in positions.into_iter().enumerate() {
             let def = BodyDef {
                 id: format!("{}/{k}", g.id),
@@ -345,8 +362,9 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
             drag: p.drag,
             gravity: p.gravity.map(Vec2::from),
         };
-        def.validate()
-            .map_err(|e| ctx.field_error(&format!("particle[{i}]"), raw.span(), e.field, &e.reason))?;
+        def.validate().map_err(|e| {
+            ctx.field_error(&format!("particle[{i}]"), raw.span(), e.field, &e.reason)
+        })?;
         world.add_particle(&def).expect("validated above");
     }
 
@@ -355,7 +373,12 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         let table = format!("emitter[{i}]");
         if world.presets().get(&e.preset).is_none() {
             let known = world.presets().names().collect::<Vec<_>>().join(", ");
-            return Err(ctx.field_error(&table, raw.span(), "preset", &format!("unknown preset `{}` (known: {known})", e.preset)));
+            return Err(ctx.field_error(
+                &table,
+                raw.span(),
+                "preset",
+                &format!("unknown preset `{}` (known: {known})", e.preset),
+            ));
         }
         world
             .add_emitter(&e.preset, e.count, Vec2::from(e.pos))
@@ -366,38 +389,63 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         let it = raw.get_ref();
         world
             .add_interaction(&it.a, &it.b, it.resolve)
-            .map_err(|e| ctx.field_error(&format!("interact[{i}]"), raw.span(), "b", &e.to_string()))?;
+            .map_err(|e| {
+                ctx.field_error(&format!("interact[{i}]"), raw.span(), "b", &e.to_string())
+            })?;
     }
     Ok(world)
 }
 
-fn add(world: &mut World, def: BodyDef, ctx: &Ctx, table: &str, span: std::ops::Range<usize>) -> Result<(), SceneError> {
+fn add(
+    world: &mut World,
+    def: BodyDef,
+    ctx: &Ctx,
+    table: &str,
+    span: std::ops::Range<usize>,
+) -> Result<(), SceneError> {
     let id = def.id.clone();
     world.add_body(def).map(|_| ()).map_err(|e| match e {
-        crate::world::WorldError::Body { source, .. } => {
-            ctx.field_error(table, span, source.field, &format!("body `{id}`: {}", source.reason))
-        }
+        crate::world::WorldError::Body { source, .. } => ctx.field_error(
+            table,
+            span,
+            source.field,
+            &format!("body `{id}`: {}", source.reason),
+        ),
         other => ctx.field_error(table, span, "id", &other.to_string()),
     })
 }
 
-fn shape_of(kind: ShapeKind, size: Option<[f64; 2]>, radius: Option<f64>) -> Result<Shape, (&'static str, String)> {
+fn shape_of(
+    kind: ShapeKind,
+    size: Option<[f64; 2]>,
+    radius: Option<f64>,
+) -> Result<Shape, (&'static str, String)> {
     match (kind, size, radius) {
         (ShapeKind::Rect, Some([w, h]), None) => Ok(Shape::rect(w, h)),
         (ShapeKind::Circle, None, Some(r)) => Ok(Shape::circle(r)),
         (ShapeKind::Rect, None, _) => Err(("size", "a rect needs size = [width, height]".into())),
-        (ShapeKind::Rect, Some(_), Some(_)) => Err(("radius", "a rect has a size, not a radius".into())),
+        (ShapeKind::Rect, Some(_), Some(_)) => {
+            Err(("radius", "a rect has a size, not a radius".into()))
+        }
         (ShapeKind::Circle, _, None) => Err(("radius", "a circle needs radius = r".into())),
-        (ShapeKind::Circle, Some(_), Some(_)) => Err(("size", "a circle has a radius, not a size".into())),
+        (ShapeKind::Circle, Some(_), Some(_)) => {
+            Err(("size", "a circle has a radius, not a size".into()))
+        }
     }
 }
 
 fn behavior_of(kind: Option<BehaviorKind>, vel: DVec2) -> Behavior {
     match kind {
         None | Some(BehaviorKind::None) => Behavior::None,
-        Some(BehaviorKind::Hero) => Behavior::Hero { held: Held::default() },
+        Some(BehaviorKind::Hero) => Behavior::Hero {
+            held: Held::default(),
+        },
         Some(BehaviorKind::Minion) => Behavior::Patrol {
-            speed: if vel.x != 0.0 { vel.x.abs() } else { behavior::MINION_SPEED },
+            speed: if vel.x != 0.0 {
+                vel.x.abs()
+            } else {
+                behavior::MINION_SPEED
+            },
             dir: if vel.x < 0.0 { -1.0 } else { 1.0 },
         },
         Some(BehaviorKind::DumbMinion) => Behavior::DumbMinion,
@@ -408,7 +456,12 @@ fn behavior_of(kind: Option<BehaviorKind>, vel: DVec2) -> Behavior {
 const MAX_GENERATED: u64 = 10_000_000;
 
 fn generate(g: &RawGenerator, shape: Shape) -> Result<Vec<DVec2>, (&'static str, String)> {
-    let need = |field: &'static str, v: Option<u32>| v.ok_or((field, format!("a {:?} generator needs `{field}`", g.kind).to_lowercase()));
+    let need = |field: &'static str, v: Option<u32>| {
+        v.ok_or((
+            field,
+            format!("a {:?} generator needs `{field}`", g.kind).to_lowercase(),
+        ))
+    };
     let size = shape.size();
     let finite = |field: &'static str, v: [f64; 2]| {
         if DVec2::from(v).is_finite() {
@@ -430,13 +483,23 @@ fn generate(g: &RawGenerator, shape: Shape) -> Result<Vec<DVec2>, (&'static str,
     let mut out = Vec::new();
     match g.kind {
         GeneratorKind::Row => {
-            let (start, step) = (finite("start", g.start)?, finite("step", g.step.ok_or(("step", "a row generator needs `step`".to_string()))?)?);
+            let (start, step) = (
+                finite("start", g.start)?,
+                finite(
+                    "step",
+                    g.step
+                        .ok_or(("step", "a row generator needs `step`".to_string()))?,
+                )?,
+            );
             let n = need("count", g.count)?;
             count_check(n as u64)?;
             out.extend((0..n).map(|k| start + step * k as f64));
         }
         GeneratorKind::Grid => {
-            let (start, step) = (finite("start", g.start)?, finite("step", g.step.unwrap_or([size.x, size.y]))?);
+            let (start, step) = (
+                finite("start", g.start)?,
+                finite("step", g.step.unwrap_or([size.x, size.y]))?,
+            );
             let (cols, rows) = (need("cols", g.cols)?, need("rows", g.rows)?);
             count_check(cols as u64 * rows as u64)?;
             for r in 0..rows {
@@ -449,7 +512,9 @@ fn generate(g: &RawGenerator, shape: Shape) -> Result<Vec<DVec2>, (&'static str,
             let base = finite("base", g.base)?;
             let n = need("count", g.count)?;
             count_check(n as u64)?;
-            out.extend((0..n).map(|k| base + DVec2::new(0.0, size.y * 0.5 + k as f64 * (size.y + g.gap))));
+            out.extend(
+                (0..n).map(|k| base + DVec2::new(0.0, size.y * 0.5 + k as f64 * (size.y + g.gap))),
+            );
         }
         GeneratorKind::Pyramid => {
             let base = finite("base", g.base)?;
@@ -482,7 +547,10 @@ impl Ctx<'_> {
 
     /// The line of `field = ...` inside the span of a table, or the table's first line.
     fn field_line(&self, span: &std::ops::Range<usize>, field: &str) -> usize {
-        let (start, end) = (span.start.min(self.text.len()), span.end.min(self.text.len()));
+        let (start, end) = (
+            span.start.min(self.text.len()),
+            span.end.min(self.text.len()),
+        );
         let mut offset = start;
         for line in self.text[start..end].split_inclusive('\n') {
             let trimmed = line.trim_start();
@@ -495,7 +563,10 @@ impl Ctx<'_> {
         }
         // A field left out: point at the table's header, the line before its body.
         let line = self.line_of(start);
-        let header = self.text[..start].trim_end().rfind('\n').map_or(1, |i| self.line_of(i + 1));
+        let header = self.text[..start]
+            .trim_end()
+            .rfind('\n')
+            .map_or(1, |i| self.line_of(i + 1));
         if self.text[..start].trim_end().ends_with(']') {
             header
         } else {
@@ -503,7 +574,13 @@ impl Ctx<'_> {
         }
     }
 
-    fn field_error(&self, table: &str, span: std::ops::Range<usize>, field: &str, message: &str) -> SceneError {
+    fn field_error(
+        &self,
+        table: &str,
+        span: std::ops::Range<usize>,
+        field: &str,
+        message: &str,
+    ) -> SceneError {
         SceneError {
             file: self.file.to_path_buf(),
             line: self.field_line(&span, field),
@@ -521,7 +598,11 @@ impl Ctx<'_> {
                     .split_once('=')
                     .map(|(k, _)| k.trim().to_string())
                     .filter(|k| !k.is_empty() && !k.starts_with('['));
+                let header = Some(text_line.trim())
+                    .filter(|l| l.starts_with('['))
+                    .map(str::to_string);
                 let field = key
+                    .or(header)
                     .or_else(|| backticked(e.message()).map(str::to_string))
                     .unwrap_or_else(|| text_line.trim().to_string());
                 (line, field)

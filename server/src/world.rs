@@ -170,13 +170,19 @@ impl World {
 
     /// The group's id, if any body or interaction has named it.
     pub fn group(&self, name: &str) -> Option<GroupId> {
-        self.groups.iter().position(|g| g.name == name).map(|i| i as GroupId)
+        self.groups
+            .iter()
+            .position(|g| g.name == name)
+            .map(|i| i as GroupId)
     }
 
     /// The selected body's id.
     pub fn selected(&self) -> Option<&str> {
         let key = self.selected?;
-        self.bodies.iter().find(|b| b.key == key).map(|b| b.id.as_str())
+        self.bodies
+            .iter()
+            .find(|b| b.key == key)
+            .map(|b| b.id.as_str())
     }
 
     /// Total kinetic energy of the rigid bodies.
@@ -232,7 +238,8 @@ impl World {
     /// Adds a particle.
     pub fn add_particle(&mut self, def: &ParticleDef) -> Result<(), WorldError> {
         def.validate()?;
-        self.particles.push(def, self.config.particle_gravity.as_vec2());
+        self.particles
+            .push(def, self.config.particle_gravity.as_vec2());
         Ok(())
     }
 
@@ -242,7 +249,9 @@ impl World {
             return Err(WorldError::UnknownPreset(preset.to_string()));
         }
         if !pos.is_finite() {
-            return Err(WorldError::Interaction(format!("emitter position {pos} is not finite")));
+            return Err(WorldError::Interaction(format!(
+                "emitter position {pos} is not finite"
+            )));
         }
         self.emitters.push(Emitter {
             pos,
@@ -264,10 +273,15 @@ impl World {
         let (sa, sb) = (side(self, a), side(self, b));
         if sa == Side::Particles && sb == Side::Particles {
             return Err(WorldError::Interaction(
-                "particles do not collide with each other; pair `particles` with a group of bodies".into(),
+                "particles do not collide with each other; pair `particles` with a group of bodies"
+                    .into(),
             ));
         }
-        self.interactions.push(Interaction { a: sa, b: sb, resolve });
+        self.interactions.push(Interaction {
+            a: sa,
+            b: sb,
+            resolve,
+        });
         Ok(())
     }
 
@@ -328,7 +342,10 @@ impl World {
         for inter in &self.interactions {
             match (inter.a, inter.b) {
                 (Side::Group(a), Side::Group(b)) => {
-                    let (ga, gb) = (&self.groups[a as usize].members, &self.groups[b as usize].members);
+                    let (ga, gb) = (
+                        &self.groups[a as usize].members,
+                        &self.groups[b as usize].members,
+                    );
                     if ga.is_empty() || gb.is_empty() {
                         continue;
                     }
@@ -349,7 +366,9 @@ impl World {
                         let body = &self.bodies[i as usize];
                         let centre = body.pos.as_vec2();
                         stats.particle_contacts += match body.shape {
-                            Shape::Rect { half } => self.particles.project_out_of_rect(centre, half.as_vec2()),
+                            Shape::Rect { half } => {
+                                self.particles.project_out_of_rect(centre, half.as_vec2())
+                            }
                             Shape::Circle { radius } => {
                                 self.particles.project_out_of_circle(centre, radius as f32)
                             }
@@ -401,7 +420,11 @@ impl World {
                 }
                 Behavior::DyePack { heading, life } => {
                     if let Some(target) = hero {
-                        *heading = behavior::turn_toward(*heading, target - b.pos, behavior::DYE_PACK_TURN_RATE);
+                        *heading = behavior::turn_toward(
+                            *heading,
+                            target - b.pos,
+                            behavior::DYE_PACK_TURN_RATE,
+                        );
                     }
                     b.pos += *heading * (behavior::DYE_PACK_SPEED * dt);
                     *life = life.saturating_sub(1);
@@ -416,7 +439,11 @@ impl World {
 
     /// Dye packs touching the hero are removed, each starting an explosion where it was.
     fn explode_dye_packs_on_hero(&mut self) {
-        let Some(hero) = self.bodies.iter().find(|b| matches!(b.behavior, Behavior::Hero { .. })) else {
+        let Some(hero) = self
+            .bodies
+            .iter()
+            .find(|b| matches!(b.behavior, Behavior::Hero { .. }))
+        else {
             return;
         };
         let (hero_shape, hero_pos) = (hero.shape, hero.pos);
@@ -431,8 +458,17 @@ impl World {
             return;
         }
         for key in &hits {
-            let pos = self.bodies.iter().find(|b| b.key == *key).expect("hit is alive").pos;
-            if self.presets.get(behavior::DYE_PACK_EXPLOSION_PRESET).is_some() {
+            let pos = self
+                .bodies
+                .iter()
+                .find(|b| b.key == *key)
+                .expect("hit is alive")
+                .pos;
+            if self
+                .presets
+                .get(behavior::DYE_PACK_EXPLOSION_PRESET)
+                .is_some()
+            {
                 self.emitters.push(Emitter {
                     pos: pos.as_vec2(),
                     remaining: behavior::DYE_PACK_EXPLOSION,
@@ -450,7 +486,10 @@ impl World {
         let gravity = self.config.particle_gravity.as_vec2();
         for e in &mut self.emitters {
             let n = e.take_batch(&mut self.rng);
-            let preset = self.presets.get(&e.preset).expect("emitter presets are checked when added");
+            let preset = self
+                .presets
+                .get(&e.preset)
+                .expect("emitter presets are checked when added");
             for _ in 0..n {
                 let def = preset.spawn(e.pos, &mut self.rng);
                 self.particles.push(&def, gravity);
@@ -470,7 +509,10 @@ impl World {
             } else {
                 Err(ActionError::BadArgument {
                     field,
-                    reason: format!("{v} must be finite and within ±{}", crate::dynamics::body::MAX_COORDINATE),
+                    reason: format!(
+                        "{v} must be finite and within ±{}",
+                        crate::dynamics::body::MAX_COORDINATE
+                    ),
                 })
             }
         };
@@ -556,7 +598,10 @@ impl World {
             Action::Select { at, group } => {
                 let at = point("at", *at)?;
                 let group = match group {
-                    Some(name) => Some(self.group(name).ok_or_else(|| ActionError::UnknownGroup(name.clone()))?),
+                    Some(name) => Some(
+                        self.group(name)
+                            .ok_or_else(|| ActionError::UnknownGroup(name.clone()))?,
+                    ),
                     None => None,
                 };
                 // The last body drawn over the point wins: the one on top.
@@ -581,7 +626,9 @@ impl World {
                     .ok_or(ActionError::NothingSelected)?;
                 body.pos = to;
                 body.vel = DVec2::ZERO;
-                Ok(ActionOutcome { ids: vec![body.id.clone()] })
+                Ok(ActionOutcome {
+                    ids: vec![body.id.clone()],
+                })
             }
             Action::Deselect => {
                 self.selected = None;
@@ -589,7 +636,7 @@ impl World {
             }
             Action::Agitate { strength } => {
                 let s = strength.unwrap_or(behavior::DEFAULT_AGITATION);
-                if !(s.is_finite() && s >= 0.0 && s <= crate::dynamics::body::MAX_COORDINATE) {
+                if !(0.0..=crate::dynamics::body::MAX_COORDINATE).contains(&s) {
                     return Err(ActionError::BadArgument {
                         field: "strength",
                         reason: format!("{s} must be a finite number, 0 or above"),
@@ -598,7 +645,10 @@ impl World {
                 let mut ids = Vec::new();
                 for b in &mut self.bodies {
                     if matches!(b.behavior, Behavior::DumbMinion) && !b.is_static() {
-                        let kick = DVec2::new(self.rng.random_range(-1.0..=1.0), self.rng.random_range(-1.0..=1.0));
+                        let kick = DVec2::new(
+                            self.rng.random_range(-1.0..=1.0),
+                            self.rng.random_range(-1.0..=1.0),
+                        );
                         b.vel += kick * s;
                         ids.push(b.id.clone());
                     }
@@ -606,8 +656,15 @@ impl World {
                 Ok(ActionOutcome { ids })
             }
             Action::Clear { group } => {
-                let g = self.group(group).ok_or_else(|| ActionError::UnknownGroup(group.clone()))?;
-                let ids = self.bodies.iter().filter(|b| b.group == g).map(|b| b.id.clone()).collect();
+                let g = self
+                    .group(group)
+                    .ok_or_else(|| ActionError::UnknownGroup(group.clone()))?;
+                let ids = self
+                    .bodies
+                    .iter()
+                    .filter(|b| b.group == g)
+                    .map(|b| b.id.clone())
+                    .collect();
                 self.remove_bodies(|b| b.group == g);
                 Ok(ActionOutcome { ids })
             }
@@ -615,7 +672,10 @@ impl World {
                 let at = point("at", *at)?.as_vec2();
                 check_count(*count)?;
                 let gravity = self.config.particle_gravity.as_vec2();
-                let recipe = self.presets.get(preset).ok_or_else(|| self.unknown_preset(preset))?;
+                let recipe = self
+                    .presets
+                    .get(preset)
+                    .ok_or_else(|| self.unknown_preset(preset))?;
                 for _ in 0..*count {
                     let def = recipe.spawn(at, &mut self.rng);
                     self.particles.push(&def, gravity);

@@ -17,7 +17,11 @@ use ricochet::world::World;
 use serde::Deserialize;
 
 #[derive(Parser)]
-#[command(name = "ricochet-server", version, about = "Ricochet: a 2D physics and particle server")]
+#[command(
+    name = "ricochet-server",
+    version,
+    about = "Ricochet: a 2D physics and particle server"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -84,7 +88,8 @@ fn main() -> Result<()> {
 }
 
 fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {
-    let file = File::open(path).with_context(|| format!("cannot open inputs {}", path.display()))?;
+    let file =
+        File::open(path).with_context(|| format!("cannot open inputs {}", path.display()))?;
     let mut out: Vec<TimedAction> = Vec::new();
     for (i, line) in BufReader::new(file).lines().enumerate() {
         let line = line.with_context(|| format!("{}:{}", path.display(), i + 1))?;
@@ -95,7 +100,13 @@ fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {
             .with_context(|| format!("{}:{}: not an input line", path.display(), i + 1))?;
         if let Some(last) = out.last() {
             if action.frame < last.frame {
-                bail!("{}:{}: frame {} comes after frame {}; inputs must be in frame order", path.display(), i + 1, action.frame, last.frame);
+                bail!(
+                    "{}:{}: frame {} comes after frame {}; inputs must be in frame order",
+                    path.display(),
+                    i + 1,
+                    action.frame,
+                    last.frame
+                );
             }
         }
         out.push(action);
@@ -168,7 +179,11 @@ fn simulate(
         out.flush()?;
     }
     let stats = world.stats();
-    let per_step = if steps > 0 { stepping.as_secs_f64() * 1e3 / steps as f64 } else { 0.0 };
+    let per_step = if steps > 0 {
+        stepping.as_secs_f64() * 1e3 / steps as f64
+    } else {
+        0.0
+    };
     eprintln!(
         "{}: {steps} steps in {:.3} s ({per_step:.4} ms/step stepping), t = {:.3} s; {} bodies, {} particles, {} emitters; \
          last step: {} contacts, {} relaxation passes, deepest penetration {:.4}, kinetic energy {:.4}; {refused} actions refused",

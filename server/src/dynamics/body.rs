@@ -75,24 +75,44 @@ impl BodyDef {
             }
             Shape::Circle { radius } => {
                 if !(radius.is_finite() && radius > 0.0 && radius <= MAX_COORDINATE) {
-                    return err("radius", format!("{radius} must be a finite number above 0 and at most {MAX_COORDINATE}"));
+                    return err(
+                        "radius",
+                        format!(
+                            "{radius} must be a finite number above 0 and at most {MAX_COORDINATE}"
+                        ),
+                    );
                 }
             }
         }
         if !finite_in(self.pos) {
-            return err("pos", format!("{} must be finite and within ±{MAX_COORDINATE}", self.pos));
+            return err(
+                "pos",
+                format!("{} must be finite and within ±{MAX_COORDINATE}", self.pos),
+            );
         }
         if !finite_in(self.vel) {
-            return err("vel", format!("{} must be finite and within ±{MAX_COORDINATE}", self.vel));
+            return err(
+                "vel",
+                format!("{} must be finite and within ±{MAX_COORDINATE}", self.vel),
+            );
         }
         if !(self.mass.is_finite() && self.mass >= 0.0) {
-            return err("mass", format!("{} must be a finite number, 0 (static) or above", self.mass));
+            return err(
+                "mass",
+                format!("{} must be a finite number, 0 (static) or above", self.mass),
+            );
         }
         if !(self.restitution.is_finite() && self.restitution >= 0.0) {
-            return err("restitution", format!("{} must be a finite number, 0 or above", self.restitution));
+            return err(
+                "restitution",
+                format!("{} must be a finite number, 0 or above", self.restitution),
+            );
         }
         if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return err("friction", format!("{} must be a finite number, 0 or above", self.friction));
+            return err(
+                "friction",
+                format!("{} must be a finite number, 0 or above", self.friction),
+            );
         }
         if let Some(g) = self.gravity {
             if !finite_in(g) {

@@ -104,10 +104,16 @@ impl WorldConfig {
     /// The chapter's setter: a rate outside (0, 1) becomes 0.8. Non-finite is refused.
     pub fn set_correction_rate(&mut self, rate: f64) -> Result<(), ConfigError> {
         if !rate.is_finite() {
-            return Err(invalid("correction_rate", format!("{rate} is not a finite number")));
+            return Err(invalid(
+                "correction_rate",
+                format!("{rate} is not a finite number"),
+            ));
         }
         self.correction_rate = if rate <= 0.0 || rate >= 1.0 {
-            tracing::warn!(rate, "correction_rate outside (0, 1): using 0.8, as the chapter does");
+            tracing::warn!(
+                rate,
+                "correction_rate outside (0, 1): using 0.8, as the chapter does"
+            );
             DEFAULT_CORRECTION_RATE
         } else {
             rate
@@ -123,7 +129,10 @@ impl WorldConfig {
     /// Sets the time step; it must be finite and positive.
     pub fn set_dt(&mut self, dt: f64) -> Result<(), ConfigError> {
         if !(dt.is_finite() && dt > 0.0) {
-            return Err(invalid("dt", format!("{dt} must be a finite number above 0")));
+            return Err(invalid(
+                "dt",
+                format!("{dt} must be a finite number above 0"),
+            ));
         }
         self.dt = dt;
         Ok(())
@@ -132,7 +141,10 @@ impl WorldConfig {
     /// Checks a whole configuration (after deserialising a scene) and applies the
     /// chapter's clamps. Returns the name of the first bad field with the reason.
     pub fn validate(&mut self) -> Result<(), ConfigError> {
-        for (name, v) in [("gravity", self.gravity), ("particle_gravity", self.particle_gravity)] {
+        for (name, v) in [
+            ("gravity", self.gravity),
+            ("particle_gravity", self.particle_gravity),
+        ] {
             if !v.is_finite() {
                 return Err(invalid(name, format!("{v} is not finite")));
             }
@@ -142,7 +154,10 @@ impl WorldConfig {
         self.set_relaxation_iterations(self.relaxation_iterations as i64);
         let [lo, hi] = self.bounds;
         if !(lo.is_finite() && hi.is_finite() && hi.x > lo.x && hi.y > lo.y) {
-            return Err(invalid("bounds", "needs two finite corners [[x0, y0], [x1, y1]] with x1 > x0 and y1 > y0"));
+            return Err(invalid(
+                "bounds",
+                "needs two finite corners [[x0, y0], [x1, y1]] with x1 > x0 and y1 > y0",
+            ));
         }
         Ok(())
     }
@@ -153,6 +168,14 @@ impl WorldConfig {
     pub fn set(&mut self, name: &str, value: &toml::Value) -> Result<(), ConfigError> {
         if !Self::NAMES.contains(&name) {
             return Err(ConfigError::UnknownName(name.to_string()));
+        }
+        if name == "relaxation_iterations" {
+            // Any integer is accepted so that 0 or -3 get the chapter's clamp, not an error.
+            let count = value
+                .as_integer()
+                .ok_or_else(|| invalid(name, format!("expected an integer, got {value}")))?;
+            self.set_relaxation_iterations(count);
+            return Ok(());
         }
         let mut table = toml::Table::new();
         table.insert(name.to_string(), value.clone());
@@ -165,16 +188,10 @@ impl WorldConfig {
             "gravity" => next.gravity = parsed.gravity,
             "particle_gravity" => next.particle_gravity = parsed.particle_gravity,
             "dt" => next.dt = parsed.dt,
-            "relaxation_iterations" => {
-                // Accept any integer so that 0 or -3 get the chapter's clamp, not an error.
-                let count = value
-                    .as_integer()
-                    .ok_or_else(|| invalid(name, "expected an integer"))?;
-                next.set_relaxation_iterations(count);
-            }
             "correction_rate" => next.correction_rate = parsed.correction_rate,
             "seed" => next.seed = parsed.seed,
             "integrator" => next.integrator = parsed.integrator,
+            "relaxation_iterations" => unreachable!("handled above"),
             "mass_scaled_acceleration" => {
                 next.mass_scaled_acceleration = parsed.mass_scaled_acceleration
             }
@@ -203,7 +220,9 @@ pub fn parse_toml_value(text: &str) -> Result<toml::Value, String> {
     let doc = format!("v = {text}");
     match doc.parse::<toml::Table>() {
         Ok(mut t) => Ok(t.remove("v").expect("key v was written above")),
-        Err(_) if !text.is_empty() && text.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') => {
+        Err(_)
+            if !text.is_empty() && text.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') =>
+        {
             Ok(toml::Value::String(text.to_string()))
         }
         Err(e) => Err(format!("`{text}` is not a value: {}", e.message())),
@@ -258,7 +277,16 @@ mod tests {
     fn bad_values_are_refused_by_name_and_change_nothing() {
         let mut c = WorldConfig::default();
         let before = c.clone();
-        for bad in ["dt=0", "dt=-1", "dt=nan", "gravity=[0]", "gravity=[inf, 0]", "integrator=verlet", "nope=1", "dt"] {
+        for bad in [
+            "dt=0",
+            "dt=-1",
+            "dt=nan",
+            "gravity=[0]",
+            "gravity=[inf, 0]",
+            "integrator=verlet",
+            "nope=1",
+            "dt",
+        ] {
             let e = c.set_from_str(bad).unwrap_err().to_string();
             let name = bad.split('=').next().unwrap();
             assert!(e.contains(name), "error for {bad} should name {name}: {e}");

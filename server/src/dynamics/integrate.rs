@@ -73,7 +73,11 @@ mod tests {
             integrate_bodies(&mut bodies, &config);
             let n = n as f64;
             let y = 100.0 + g * dt * dt * n * (n + 1.0) / 2.0;
-            assert!((bodies[0].pos.y - y).abs() < 1e-9, "step {n}: {} vs {y}", bodies[0].pos.y);
+            assert!(
+                (bodies[0].pos.y - y).abs() < 1e-9,
+                "step {n}: {} vs {y}",
+                bodies[0].pos.y
+            );
             assert!((bodies[0].vel.y - n * g * dt).abs() < 1e-9);
         }
     }

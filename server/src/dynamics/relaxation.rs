@@ -210,8 +210,18 @@ mod tests {
 
     #[test]
     fn head_on_collision_conserves_momentum_and_uses_the_smaller_restitution() {
-        let mut a = body(Shape::circle(1.0), DVec2::new(0.0, 0.0), DVec2::new(4.0, 0.0), 1.0 / 2.0);
-        let mut b = body(Shape::circle(1.0), DVec2::new(1.9, 0.0), DVec2::new(-2.0, 0.0), 1.0 / 3.0);
+        let mut a = body(
+            Shape::circle(1.0),
+            DVec2::new(0.0, 0.0),
+            DVec2::new(4.0, 0.0),
+            1.0 / 2.0,
+        );
+        let mut b = body(
+            Shape::circle(1.0),
+            DVec2::new(1.9, 0.0),
+            DVec2::new(-2.0, 0.0),
+            1.0 / 3.0,
+        );
         a.restitution = 0.5;
         b.restitution = 0.9;
         let p0 = a.vel * a.mass() + b.vel * b.mass();
@@ -222,14 +232,22 @@ mod tests {
         // Separation speed = e * approach speed with e = min(0.5, 0.9).
         let approach = 6.0;
         let separation = (b.vel - a.vel).x;
-        assert!((separation - 0.5 * approach).abs() < 1e-12, "separation {separation}");
+        assert!(
+            (separation - 0.5 * approach).abs() < 1e-12,
+            "separation {separation}"
+        );
         assert!(a.collided && b.collided);
     }
 
     #[test]
     fn positional_correction_is_split_by_inverse_mass() {
         let mut a = body(Shape::rect(2.0, 2.0), DVec2::ZERO, DVec2::ZERO, 1.0);
-        let mut b = body(Shape::rect(2.0, 2.0), DVec2::new(1.5, 0.0), DVec2::ZERO, 3.0);
+        let mut b = body(
+            Shape::rect(2.0, 2.0),
+            DVec2::new(1.5, 0.0),
+            DVec2::ZERO,
+            3.0,
+        );
         let info = collide(&a.shape, a.pos, &b.shape, b.pos).unwrap();
         assert!((info.depth - 0.5).abs() < 1e-12);
         resolve_collision(&mut a, &mut b, &info, 0.8, 1.0);
@@ -242,13 +260,29 @@ mod tests {
     fn two_static_bodies_are_left_alone() {
         let mut bodies = vec![
             body(Shape::rect(2.0, 2.0), DVec2::ZERO, DVec2::ZERO, 0.0),
-            body(Shape::rect(2.0, 2.0), DVec2::new(0.5, 0.0), DVec2::ZERO, 0.0),
+            body(
+                Shape::rect(2.0, 2.0),
+                DVec2::new(0.5, 0.0),
+                DVec2::ZERO,
+                0.0,
+            ),
         ];
-        let r = relax(&mut bodies, &[0], &[1], RelaxationParams { iterations: 15, correction_rate: 0.8 });
+        let r = relax(
+            &mut bodies,
+            &[0],
+            &[1],
+            RelaxationParams {
+                iterations: 15,
+                correction_rate: 0.8,
+            },
+        );
         assert_eq!(r.contacts, 0);
         assert!(bodies.iter().all(|b| b.pos.is_finite() && !b.collided));
         // Called directly, the resolution still refuses to divide by zero.
-        let info = CollisionInfo { depth: 1.0, normal: DVec2::X };
+        let info = CollisionInfo {
+            depth: 1.0,
+            normal: DVec2::X,
+        };
         let (a, b) = pair_mut(&mut bodies, 0, 1);
         resolve_collision(a, b, &info, 0.8, 1.0);
         assert!(a.pos.is_finite() && b.pos.is_finite());
@@ -275,7 +309,12 @@ mod tests {
     fn second_body_of_a_pair_is_slowed_by_friction() {
         // The chapter's sign defect sped up the second body of a pair.
         let mut platform = body(Shape::rect(10.0, 1.0), DVec2::ZERO, DVec2::ZERO, 0.0);
-        let mut slider = body(Shape::rect(1.0, 1.0), DVec2::new(0.0, 0.9), DVec2::new(5.0, -1.0), 1.0);
+        let mut slider = body(
+            Shape::rect(1.0, 1.0),
+            DVec2::new(0.0, 0.9),
+            DVec2::new(5.0, -1.0),
+            1.0,
+        );
         let info = collide(&platform.shape, platform.pos, &slider.shape, slider.pos).unwrap();
         resolve_collision(&mut platform, &mut slider, &info, 0.8, 1.0 / 15.0);
         assert!(slider.vel.x < 5.0 && slider.vel.x > 0.0, "{}", slider.vel);
@@ -288,9 +327,22 @@ mod tests {
         for n in [1u32, 2, 15] {
             let mut bodies = vec![
                 body(Shape::rect(10.0, 10.0), DVec2::ZERO, DVec2::ZERO, 0.0),
-                body(Shape::rect(10.0, 10.0), DVec2::new(0.0, 1.0), DVec2::ZERO, 1.0),
+                body(
+                    Shape::rect(10.0, 10.0),
+                    DVec2::new(0.0, 1.0),
+                    DVec2::ZERO,
+                    1.0,
+                ),
             ];
-            let r = relax(&mut bodies, &[0], &[1], RelaxationParams { iterations: n, correction_rate: 0.01 });
+            let r = relax(
+                &mut bodies,
+                &[0],
+                &[1],
+                RelaxationParams {
+                    iterations: n,
+                    correction_rate: 0.01,
+                },
+            );
             assert_eq!(r.iterations, n);
             assert_eq!(r.contacts, n as u64);
         }
@@ -300,9 +352,29 @@ mod tests {
     fn relaxation_stops_after_a_clean_pass() {
         let mut bodies = vec![
             body(Shape::rect(10.0, 2.0), DVec2::ZERO, DVec2::ZERO, 0.0),
-            body(Shape::rect(1.0, 1.0), DVec2::new(0.0, 1.6), DVec2::ZERO, 1.0),
+            body(
+                Shape::rect(1.0, 1.0),
+                DVec2::new(0.0, 1.6),
+                DVec2::ZERO,
+                1.0,
+            ),
         ];
-        let r = relax(&mut bodies, &[0], &[1], RelaxationParams { iterations: 15, correction_rate: 0.8 });
-        assert_eq!(r, RelaxationReport { contacts: 0, iterations: 1, deepest: 0.0 });
+        let r = relax(
+            &mut bodies,
+            &[0],
+            &[1],
+            RelaxationParams {
+                iterations: 15,
+                correction_rate: 0.8,
+            },
+        );
+        assert_eq!(
+            r,
+            RelaxationReport {
+                contacts: 0,
+                iterations: 1,
+                deepest: 0.0
+            }
+        );
     }
 }

@@ -222,11 +222,14 @@ mod tests {
 
     #[test]
     fn rect_circle_outside_the_corner() {
-        // Corner at (5, 2); circle centre at (5.6, 2.8): 0.6, 0.8 away, distance 1.
-        let c = collide_rect_circle(v(0.0, 0.0), v(5.0, 2.0), v(5.6, 2.8), 1.5).unwrap();
-        assert!(close(c.depth, 0.5));
+        // Corner at (4, 2); circle centre at (4.75, 3): 0.75, 1 away, distance 1.25.
+        let c = collide_rect_circle(v(0.0, 0.0), v(4.0, 2.0), v(4.75, 3.0), 1.5).unwrap();
+        assert!(close(c.depth, 0.25));
         assert!(close(c.normal.x, 0.6) && close(c.normal.y, 0.8));
-        assert_eq!(collide_rect_circle(v(0.0, 0.0), v(5.0, 2.0), v(5.6, 2.8), 1.0), None);
+        assert_eq!(
+            collide_rect_circle(v(0.0, 0.0), v(4.0, 2.0), v(4.75, 3.0), 1.25),
+            None
+        );
     }
 
     #[test]
@@ -243,7 +246,11 @@ mod tests {
         for (centre, normal, depth) in cases {
             let c = collide_rect_circle(v(0.0, 0.0), h, centre, 1.0).unwrap();
             assert_eq!(c.normal, normal, "circle at {centre}");
-            assert!(close(c.depth, depth), "circle at {centre}: depth {}", c.depth);
+            assert!(
+                close(c.depth, depth),
+                "circle at {centre}: depth {}",
+                c.depth
+            );
         }
     }
 
@@ -305,7 +312,7 @@ mod tests {
                     prop_assert!((c.normal.length() - 1.0).abs() < 1e-9);
                     let moved = pb + c.normal * (c.depth * (1.0 + 1e-9) + 1e-9);
                     let again = collide(&a, pa, &b, moved);
-                    prop_assert!(again.map_or(true, |c2| c2.depth < 1e-6 * (1.0 + c.depth)),
+                    prop_assert!(again.is_none_or(|c2| c2.depth < 1e-6 * (1.0 + c.depth)),
                         "still overlapping by {:?}", again);
                 }
             }

@@ -51,7 +51,11 @@ mod tests {
     fn an_emitter_releases_exactly_its_budget_then_expires() {
         let mut rng = ChaCha8Rng::seed_from_u64(11);
         for budget in [0u32, 1, 4, 5, 200, 10_000] {
-            let mut e = Emitter { pos: Vec2::ZERO, remaining: budget, preset: "fire".into() };
+            let mut e = Emitter {
+                pos: Vec2::ZERO,
+                remaining: budget,
+                preset: "fire".into(),
+            };
             let mut total = 0;
             let mut updates = 0;
             while !e.expired() {

@@ -30,9 +30,9 @@ impl Sample {
     pub fn draw(&self, rng: &mut impl Rng) -> f32 {
         match self {
             Sample::Constant(v) => *v,
-            Sample::Random { base, rand } => {
-                rand.iter().fold(*base, |acc, c| acc + c * rng.random::<f32>())
-            }
+            Sample::Random { base, rand } => rand
+                .iter()
+                .fold(*base, |acc, c| acc + c * rng.random::<f32>()),
         }
     }
 
@@ -100,7 +100,8 @@ impl ParticlePreset {
 
 /// The presets shipped in `assets/presets/`, built into the binary so a scene can name
 /// them with nothing installed.
-pub const BUILT_IN: &[(&str, &str)] = &[("fire", include_str!("../../../assets/presets/fire.toml"))];
+pub const BUILT_IN: &[(&str, &str)] =
+    &[("fire", include_str!("../../../assets/presets/fire.toml"))];
 
 /// Presets by name. A scene's own `[preset.NAME]` tables add to or replace the built-ins.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -162,10 +163,11 @@ mod tests {
 
     #[test]
     fn samples_draw_one_uniform_per_coefficient() {
-        let s: Sample = toml::from_str::<BTreeMap<String, Sample>>("v = { base = 1, rand = [2, -4] }")
-            .unwrap()
-            .remove("v")
-            .unwrap();
+        let s: Sample =
+            toml::from_str::<BTreeMap<String, Sample>>("v = { base = 1, rand = [2, -4] }")
+                .unwrap()
+                .remove("v")
+                .unwrap();
         let mut a = ChaCha8Rng::seed_from_u64(3);
         let mut b = ChaCha8Rng::seed_from_u64(3);
         let (r1, r2): (f32, f32) = (b.random(), b.random());

@@ -61,10 +61,19 @@ impl ParticleDef {
             return err("vel", format!("{} is not finite", self.vel));
         }
         if !(self.life.is_finite() && self.life >= 0.0) {
-            return err("life", format!("{} must be a finite number of updates, 0 or more", self.life));
+            return err(
+                "life",
+                format!(
+                    "{} must be a finite number of updates, 0 or more",
+                    self.life
+                ),
+            );
         }
         if !(self.size.is_finite() && self.size >= 0.0) {
-            return err("size", format!("{} must be finite and not negative", self.size));
+            return err(
+                "size",
+                format!("{} must be finite and not negative", self.size),
+            );
         }
         if !self.color.is_finite() {
             return err("color", format!("{} is not finite", self.color));
@@ -73,10 +82,16 @@ impl ParticleDef {
             return err("final_color", format!("{} is not finite", self.final_color));
         }
         if !(self.size_delta.is_finite() && self.size_delta >= 0.0) {
-            return err("size_delta", format!("{} must be finite and not negative", self.size_delta));
+            return err(
+                "size_delta",
+                format!("{} must be finite and not negative", self.size_delta),
+            );
         }
         if !(self.drag.is_finite() && self.drag >= 0.0) {
-            return err("drag", format!("{} must be finite and not negative", self.drag));
+            return err(
+                "drag",
+                format!("{} must be finite and not negative", self.drag),
+            );
         }
         if self.gravity.is_some_and(|g| !g.is_finite()) {
             return err("gravity", "is not finite".into());
@@ -158,7 +173,12 @@ impl Particles {
     /// expired (life below 0) are removed, keeping the order of the rest.
     pub fn update(&mut self, dt: f32) {
         let n = self.len();
-        let (x, y, vx, vy) = (&mut self.x[..n], &mut self.y[..n], &mut self.vx[..n], &mut self.vy[..n]);
+        let (x, y, vx, vy) = (
+            &mut self.x[..n],
+            &mut self.y[..n],
+            &mut self.vx[..n],
+            &mut self.vy[..n],
+        );
         let (ax, ay, drag) = (&self.ax[..n], &self.ay[..n], &self.drag[..n]);
         for i in 0..n {
             let nvx = (vx[i] + ax[i] * dt) * drag[i];
@@ -168,7 +188,11 @@ impl Particles {
             x[i] += nvx * dt;
             y[i] += nvy * dt;
         }
-        let (life, size, size_delta) = (&mut self.life[..n], &mut self.size[..n], &self.size_delta[..n]);
+        let (life, size, size_delta) = (
+            &mut self.life[..n],
+            &mut self.size[..n],
+            &self.size_delta[..n],
+        );
         let mut any_expired = false;
         for i in 0..n {
             life[i] -= 1.0;
@@ -243,7 +267,11 @@ impl Particles {
             let d_sq = dx * dx + dy * dy;
             if d_sq < r_sq {
                 let dist = d_sq.sqrt();
-                let (nx, ny) = if dist > 0.0 { (dx / dist, dy / dist) } else { (0.0, 1.0) };
+                let (nx, ny) = if dist > 0.0 {
+                    (dx / dist, dy / dist)
+                } else {
+                    (0.0, 1.0)
+                };
                 self.x[i] = centre.x + nx * radius;
                 self.y[i] = centre.y + ny * radius;
                 moved += 1;
@@ -276,7 +304,10 @@ mod tests {
             assert_eq!(p.len(), 1, "still alive after update {k}");
         }
         let c = p.color_of(0);
-        assert!((c - Vec4::new(3.0, 0.5, 0.5, 0.5)).abs().max_element() < 1e-6, "{c}");
+        assert!(
+            (c - Vec4::new(3.0, 0.5, 0.5, 0.5)).abs().max_element() < 1e-6,
+            "{c}"
+        );
         p.update(1.0 / 60.0);
         assert_eq!(p.len(), 0);
     }
@@ -302,7 +333,14 @@ mod tests {
     fn expiry_keeps_the_order_of_the_survivors() {
         let mut p = Particles::default();
         for (i, life) in [5.0, 0.0, 3.0, 0.5, 9.0].into_iter().enumerate() {
-            p.push(&ParticleDef { pos: Vec2::new(i as f32, 0.0), life, ..Default::default() }, Vec2::ZERO);
+            p.push(
+                &ParticleDef {
+                    pos: Vec2::new(i as f32, 0.0),
+                    life,
+                    ..Default::default()
+                },
+                Vec2::ZERO,
+            );
         }
         p.update(0.0);
         assert_eq!(p.x, vec![0.0, 2.0, 4.0]);
@@ -314,7 +352,13 @@ mod tests {
     fn particles_leave_a_rectangle_by_the_nearest_of_all_four_sides() {
         let mut p = Particles::default();
         for pos in [(4.0, 0.5), (-4.0, 0.5), (0.5, 4.5), (0.5, -4.5), (9.0, 9.0)] {
-            p.push(&ParticleDef { pos: Vec2::from(pos), ..Default::default() }, Vec2::ZERO);
+            p.push(
+                &ParticleDef {
+                    pos: Vec2::from(pos),
+                    ..Default::default()
+                },
+                Vec2::ZERO,
+            );
         }
         let moved = p.project_out_of_rect(Vec2::ZERO, Vec2::new(5.0, 5.0));
         assert_eq!(moved, 4);
@@ -328,13 +372,19 @@ mod tests {
     #[test]
     fn particles_leave_a_circle_radially_even_from_its_centre() {
         let mut p = Particles::default();
-        for pos in [(0.6, 0.8), (1.0, 1.0), (0.0, 0.0)] {
-            p.push(&ParticleDef { pos: Vec2::from(pos) + Vec2::new(10.0, 10.0), ..Default::default() }, Vec2::ZERO);
+        for pos in [(0.6, 0.8), (2.0, 2.0), (0.0, 0.0)] {
+            p.push(
+                &ParticleDef {
+                    pos: Vec2::from(pos) + Vec2::new(10.0, 10.0),
+                    ..Default::default()
+                },
+                Vec2::ZERO,
+            );
         }
         let moved = p.project_out_of_circle(Vec2::new(10.0, 10.0), 2.0);
         assert_eq!(moved, 2);
         assert!((p.pos(0) - Vec2::new(11.2, 11.6)).length() < 1e-5);
-        assert_eq!(p.pos(1), Vec2::new(11.0, 11.0));
+        assert_eq!(p.pos(1), Vec2::new(12.0, 12.0));
         assert_eq!(p.pos(2), Vec2::new(10.0, 12.0));
         assert!(p.x.iter().chain(&p.y).all(|v| v.is_finite()));
     }

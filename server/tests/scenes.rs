@@ -1,0 +1,204 @@
+//! Scene files: defaults, generators, and bad scenes refused with file, line and field.
+
+use std::path::Path;
+
+use glam::DVec2;
+use ricochet::geometry::Shape;
+use ricochet::scene::{self, SceneError};
+
+fn parse(text: &str) -> Result<ricochet::world::World, SceneError> {
+    scene::parse(text, Path::new("bad.toml"), &[])
+}
+
+/// Asserts the scene is refused at `line` for `field`, with `needle` in the message.
+fn refused(text: &str, line: usize, field: &str, needle: &str) {
+    let e = parse(text)
+        .err()
+        .unwrap_or_else(|| panic!("accepted:\n{text}"));
+    assert_eq!(e.file, Path::new("bad.toml"));
+    assert_eq!((e.line, e.field.as_str()), (line, field), "{e}");
+    assert!(
+        e.message.contains(needle),
+        "`{}` should contain `{needle}`",
+        e.message
+    );
+    let shown = e.to_string();
+    assert!(
+        shown.starts_with(&format!("bad.toml:{line}: {field}")),
+        "{shown}"
+    );
+}
+
+#[test]
+fn left_out_fields_take_the_chapters_defaults() {
+    let w = parse("[[body]]\nid = \"b\"\nshape = \"circle\"\nradius = 2\n").unwrap();
+    let b = w.body("b").unwrap();
+    assert_eq!((b.inv_mass, b.restitution, b.friction), (1.0, 0.8, 0.3));
+    assert_eq!(w.config.relaxation_iterations, 15);
+    assert_eq!(w.config.gravity, DVec2::new(0.0, -50.0));
+    assert_eq!(b.shape, Shape::circle(2.0));
+}
+
+#[test]
+fn generators_name_their_bodies_after_themselves() {
+    let w = parse(
+        r#"
+[[generate]]
+kind = "pyramid"
+id = "p"
+shape = "rect"
+size = [2, 1]
+base = [10, 0]
+levels = 3
+gap = 0.5
+"#,
+    )
+    .unwrap();
+    let ids: Vec<&str> = w.bodies().iter().map(|b| b.id.as_str()).collect();
+    assert_eq!(ids, ["p/0", "p/1", "p/2", "p/3", "p/4", "p/5"]);
+    // Bottom row of 3 centred on x = 10, 2.5 apart; the top one at the centre.
+    assert_eq!(w.body("p/0").unwrap().pos, DVec2::new(7.5, 0.5));
+    assert_eq!(w.body("p/2").unwrap().pos, DVec2::new(12.5, 0.5));
+    assert_eq!(w.body("p/5").unwrap().pos, DVec2::new(10.0, 3.5));
+}
+
+#[test]
+fn overrides_apply_after_the_file() {
+    let w = scene::parse(
+        "[world]\nrelaxation_iterations = 4\n",
+        Path::new("s.toml"),
+        &["relaxation_iterations=30".into(), "gravity=[0,-10]".into()],
+    )
+    .unwrap();
+    assert_eq!(w.config.relaxation_iterations, 30);
+    assert_eq!(w.config.gravity, DVec2::new(0.0, -10.0));
+    let e = scene::parse("", Path::new("s.toml"), &["dt=-1".into()])
+        .err()
+        .unwrap();
+    assert_eq!(e.field, "dt");
+}
+
+#[test]
+fn a_typo_in_a_field_name_is_refused_at_its_line() {
+    refused(
+        "[[body]]\nid = \"a\"\nshape = \"rect\"\nsiz = [1, 2]\n",
+        4,
+        "siz",
+        "unknown field `siz`",
+    );
+}
+
+#[test]
+fn a_value_of_the_wrong_type_is_refused_at_its_line() {
+    refused(
+        "[world]\nseed = 1\ngravity = \"down\"\n",
+        3,
+        "gravity",
+        "invalid type",
+    );
+}
+
+#[test]
+fn a_broken_file_is_refused_at_its_line() {
+    refused("[world]\ndt = 0.01\n\n[[body]\nid = 1\n", 4, "[[body]", "");
+}
+
+#[test]
+fn bad_numbers_are_refused_with_the_field_at_fault() {
+    refused("[world]\nseed = 1\ndt = 0\n", 3, "world.dt", "above 0");
+    refused(
+        "[[body]]\nid = \"a\"\nshape = \"circle\"\nradius = -1\n",
+        4,
+        "body[0].radius",
+        "above 0",
+    );
+    refused(
+        "[[body]]\nid = \"a\"\nshape = \"rect\"\nsize = [1, 1]\n\n[[body]]\nid = \"b\"\nshape = \"rect\"\nsize = [1, 1]\nmass = -3\n",
+        10,
+        "body[1].mass",
+        "-3",
+    );
+    refused(
+        "[[body]]\nid = \"a\"\nshape = \"rect\"\nsize = [1, 1]\npos = [nan, 0]\n",
+        5,
+        "body[0].pos",
+        "finite",
+    );
+    refused(
+        "[[body]]\nid = \"a\"\nshape = \"rect\"\nsize = [1e300, 1]\n",
+        4,
+        "body[0].size",
+        "at most",
+    );
+}
+
+#[test]
+fn a_missing_shape_size_is_refused_at_the_table() {
+    refused(
+        "[world]\nseed = 2\n\n[[body]]\nid = \"a\"\nshape = \"rect\"\n",
+        4,
+        "body[0].size",
+        "size = [width, height]",
+    );
+}
+
+#[test]
+fn duplicate_ids_unknown_presets_and_particle_pairs_are_refused() {
+    refused(
+        "[[body]]\nid = \"a\"\nshape = \"circle\"\nradius = 1\n[[body]]\nid = \"a\"\nshape = \"circle\"\nradius = 1\n",
+        6,
+        "body[1].id",
+        "already exists",
+    );
+    refused(
+        "[[emitter]]\npreset = \"smoke\"\ncount = 3\npos = [0, 0]\n",
+        2,
+        "emitter[0].preset",
+        "smoke",
+    );
+    refused(
+        "[[interact]]\na = \"particles\"\nb = \"particles\"\n",
+        3,
+        "interact[0].b",
+        "each other",
+    );
+    refused(
+        "[[particle]]\npos = [0, 0]\nlife = -4\n",
+        3,
+        "particle[0].life",
+        "0 or more",
+    );
+}
+
+#[test]
+fn an_unreadable_file_is_named() {
+    let e = scene::load(Path::new("/nonexistent/scene.toml"))
+        .err()
+        .unwrap();
+    assert_eq!(e.file, Path::new("/nonexistent/scene.toml"));
+    assert_eq!(e.field, "file");
+}
+
+#[test]
+fn inline_presets_add_to_the_built_in_ones() {
+    let w = parse(
+        r#"
+[preset.spark]
+life = 10
+color = [1, 1, 0, 1]
+final_color = [1, 1, 0, 0]
+size = { base = 1, rand = [1] }
+size_delta = 1
+vel = [0, { base = 5, rand = [5] }]
+drag = 1
+
+[[emitter]]
+preset = "spark"
+count = 10
+pos = [0, 0]
+"#,
+    )
+    .unwrap();
+    assert!(w.presets().get("spark").is_some() && w.presets().get("fire").is_some());
+    assert_eq!(w.emitters().len(), 1);
+}
