@@ -195,7 +195,7 @@ fn a_bad_input_line_is_refused_with_its_line() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains(":2: not an input line") && err.contains("teleport"),
+        err.contains("line 2: not an input line") && err.contains("teleport"),
         "{err}"
     );
 }

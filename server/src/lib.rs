@@ -8,15 +8,18 @@
 //! - [`particles`]: the particle system, presets and emitters;
 //! - [`behavior`]: the demo objects (hero, minions, dye packs, dumb minions);
 //! - [`world`]: the step that ties them together, and [`action`]: what clients may do;
-//! - [`scene`]: scene files; [`dump`]: the JSON Lines frames of headless runs.
+//! - [`scene`]: scene files; [`dump`]: the JSON Lines frames of headless runs;
+//! - [`host`]: the authoritative server on zenoh.
 
 pub mod action;
 pub mod behavior;
 pub mod dump;
 pub mod dynamics;
 pub mod geometry;
+pub mod host;
 pub mod particles;
 pub mod scene;
+pub mod wire;
 pub mod world;
 
 /// The names most users need.

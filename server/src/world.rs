@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::action::{Action, ActionError, ActionOutcome, MAX_PARTICLES_PER_ACTION};
-use crate::behavior::{self, Behavior, Held};
+use crate::behavior::{self, Behavior};
 use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
 use crate::dynamics::config::WorldConfig;
 use crate::dynamics::integrate::integrate_bodies;
@@ -96,6 +96,7 @@ pub struct World {
     spawned: u64,
     selected: Option<BodyKey>,
     stats: StepStats,
+    statics_revision: u64,
 }
 
 impl World {
@@ -116,6 +117,7 @@ impl World {
             spawned: 0,
             selected: None,
             stats: StepStats::default(),
+            statics_revision: 0,
         }
     }
 
@@ -176,6 +178,11 @@ impl World {
             .map(|i| i as GroupId)
     }
 
+    /// Changes whenever a static body is added, moved or removed: when to re-send them.
+    pub fn statics_revision(&self) -> u64 {
+        self.statics_revision
+    }
+
     /// The selected body's id.
     pub fn selected(&self) -> Option<&str> {
         let key = self.selected?;
@@ -217,6 +224,9 @@ impl World {
         let key = BodyKey(self.next_key);
         self.next_key += 1;
         let index = self.bodies.len() as u32;
+        if def.mass == 0.0 {
+            self.statics_revision += 1;
+        }
         self.bodies.push(Body {
             pos: def.pos,
             vel: def.vel,
@@ -298,6 +308,9 @@ impl World {
 
     /// Removes the bodies for which `remove` is true, keeping the order of the rest.
     fn remove_bodies(&mut self, remove: impl Fn(&Body) -> bool) {
+        if self.bodies.iter().any(|b| b.is_static() && remove(b)) {
+            self.statics_revision += 1;
+        }
         let before = self.bodies.len();
         self.bodies.retain(|b| !remove(b));
         if self.bodies.len() != before {
@@ -696,8 +709,14 @@ impl World {
                 none
             }
             Action::Set { name, value } => {
+                let value: toml::Value = serde_json::from_value(value.clone()).map_err(|e| {
+                    ActionError::BadArgument {
+                        field: "value",
+                        reason: format!("{value} is not a parameter value: {e}"),
+                    }
+                })?;
                 let before = self.config.seed;
-                self.config.set(name, value)?;
+                self.config.set(name, &value)?;
                 if self.config.seed != before {
                     self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
                 }
@@ -731,12 +750,4 @@ fn check_count(count: u32) -> Result<(), ActionError> {
         });
     }
     Ok(())
-}
-
-/// Everything observable about a hero for tests and tools.
-pub fn hero_held(world: &World) -> Option<Held> {
-    world.bodies().iter().find_map(|b| match b.behavior {
-        Behavior::Hero { held } => Some(held),
-        _ => None,
-    })
 }

@@ -383,14 +383,14 @@ fn refused_actions_change_nothing_and_say_why() {
         (
             Action::Set {
                 name: "dt".into(),
-                value: toml::Value::Float(0.0),
+                value: serde_json::json!(0.0),
             },
             "dt",
         ),
         (
             Action::Set {
                 name: "warp".into(),
-                value: toml::Value::Integer(9),
+                value: serde_json::json!(9),
             },
             "warp",
         ),
@@ -413,19 +413,19 @@ fn set_changes_world_parameters_with_the_chapters_clamps() {
     let mut w = asset("impulse.toml");
     w.apply(&Action::Set {
         name: "relaxation_iterations".into(),
-        value: toml::Value::Integer(0),
+        value: serde_json::json!(0),
     })
     .unwrap();
     assert_eq!(w.config.relaxation_iterations, 1);
     w.apply(&Action::Set {
         name: "correction_rate".into(),
-        value: toml::Value::Float(1.5),
+        value: serde_json::json!(1.5),
     })
     .unwrap();
     assert_eq!(w.config.correction_rate, 0.8);
     w.apply(&Action::Set {
         name: "integrator".into(),
-        value: toml::Value::String("explicit".into()),
+        value: serde_json::json!("explicit"),
     })
     .unwrap();
     assert_eq!(w.config.integrator, Integrator::Explicit);
@@ -481,7 +481,7 @@ fn the_same_scene_seed_and_actions_give_the_same_frames_bit_for_bit() {
     other
         .apply(&Action::Set {
             name: "seed".into(),
-            value: toml::Value::Integer(2),
+            value: serde_json::json!(2),
         })
         .unwrap();
     let c = run_dump(other, &actions, 240);

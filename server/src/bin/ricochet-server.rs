@@ -1,20 +1,25 @@
 //! `ricochet-server`: runs Ricochet worlds.
 //!
-//! `simulate` runs a scene headless, with no network, and can dump every frame as JSON
-//! Lines for other tools.
+//! `run` hosts a world on zenoh in real time; `simulate` runs a scene headless, with no
+//! network, and can dump every frame as JSON Lines; `router` runs a zenoh router where
+//! servers and clients on several hosts meet.
 
 use std::fs::File;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use ricochet::action::Action;
 use ricochet::dump;
+use ricochet::host::{self, HostOptions};
 use ricochet::scene;
+use ricochet::wire;
 use ricochet::world::World;
-use serde::Deserialize;
+use ricochet_protocol::client::{Mode, Network, DEFAULT_ENDPOINT};
+use ricochet_protocol::command::{parse_input_log, TimedAction};
+use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
+use ricochet_protocol::keys::DEFAULT_WORLD;
 
 #[derive(Parser)]
 #[command(
@@ -27,8 +32,78 @@ struct Cli {
     command: Command,
 }
 
+/// Where a zenoh session connects and listens.
+#[derive(clap::Args, Clone, Debug)]
+struct NetworkArgs {
+    /// Endpoint to listen on, e.g. tcp/127.0.0.1:7447 or tcp/0.0.0.0:7447. Repeatable.
+    #[arg(long, value_name = "ENDPOINT")]
+    listen: Vec<String>,
+    /// Endpoint of a peer or router to connect to, e.g. tcp/10.0.0.5:7447. Repeatable.
+    #[arg(long, value_name = "ENDPOINT")]
+    connect: Vec<String>,
+    /// peer (talk to peers directly), client (only through a router) or router.
+    #[arg(long, default_value = "peer")]
+    mode: Mode,
+    /// Also discover peers by multicast scouting (off: explicit endpoints only).
+    #[arg(long)]
+    multicast: bool,
+}
+
+impl NetworkArgs {
+    /// A server's network: with no endpoint given, listen on the default one.
+    fn server(self) -> Network {
+        let listen = if self.listen.is_empty() && self.connect.is_empty() {
+            vec![DEFAULT_ENDPOINT.to_string()]
+        } else {
+            self.listen
+        };
+        Network {
+            mode: self.mode,
+            connect: self.connect,
+            listen,
+            multicast: self.multicast,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
+    /// Host a world on zenoh and run it in real time at the scene's fixed step.
+    ///
+    /// With no flags it listens on tcp/127.0.0.1:7447 and clients on the same machine
+    /// connect there by default. Commands arrive on ricochet/<world>/cmd (fire and forget)
+    /// and ricochet/<world>/rpc (request, reply); frames leave on ricochet/<world>/frame,
+    /// the statics snapshot on ricochet/<world>/snapshot (also a queryable), one event per
+    /// handled command on ricochet/<world>/event; a liveliness token
+    /// ricochet/<world>/alive says the world is up.
+    Run {
+        /// The scene file (TOML).
+        #[arg(long)]
+        scene: PathBuf,
+        /// The world's name in key expressions.
+        #[arg(long, default_value = DEFAULT_WORLD)]
+        world: String,
+        #[command(flatten)]
+        network: NetworkArgs,
+        /// Start paused; `resume` or `step` commands move the world.
+        #[arg(long)]
+        paused: bool,
+        /// Override a `[world]` field (as for simulate). Repeatable.
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<String>,
+        /// A key frame (all dynamic state) every this many frames.
+        #[arg(long, default_value_t = 60)]
+        keyframe_interval: u64,
+        /// Stop after this many frames instead of running until killed.
+        #[arg(long)]
+        max_frames: Option<u64>,
+    },
+    /// Run a zenoh router: servers and clients on several hosts connect to it
+    /// (`--mode client --connect tcp/<router>:7447`) and meet there.
+    Router {
+        #[command(flatten)]
+        network: NetworkArgs,
+    },
     /// Run a scene headless for a number of steps, without any network.
     ///
     /// Line 0 of the dump is the state before the first step, line k the state after k
@@ -57,15 +132,11 @@ enum Command {
         /// applied after N steps, before step N + 1, in file order.
         #[arg(long)]
         inputs: Option<PathBuf>,
+        /// Encode every frame as the server would send it and report the bytes per frame,
+        /// per dynamic body and per particle (key frames every 60 frames).
+        #[arg(long)]
+        wire_stats: bool,
     },
-}
-
-/// One line of an input log.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TimedAction {
-    frame: u64,
-    action: Action,
 }
 
 fn main() -> Result<()> {
@@ -76,6 +147,28 @@ fn main() -> Result<()> {
         .with_writer(std::io::stderr)
         .init();
     match Cli::parse().command {
+        Command::Run {
+            scene,
+            world,
+            network,
+            paused,
+            set,
+            keyframe_interval,
+            max_frames,
+        } => host::run(HostOptions {
+            scene,
+            world,
+            network: network.server(),
+            paused,
+            overrides: set,
+            keyframe_interval,
+            max_frames,
+        }),
+        Command::Router { network } => {
+            let mut net = network.server();
+            net.mode = Mode::Router;
+            host::run_router(&net)
+        }
         Command::Simulate {
             scene,
             steps,
@@ -83,35 +176,23 @@ fn main() -> Result<()> {
             set,
             dump,
             inputs,
-        } => simulate(&scene, steps, seed, set, dump.as_deref(), inputs.as_deref()),
+            wire_stats,
+        } => simulate(
+            &scene,
+            steps,
+            seed,
+            set,
+            dump.as_deref(),
+            inputs.as_deref(),
+            wire_stats,
+        ),
     }
 }
 
 fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {
-    let file =
-        File::open(path).with_context(|| format!("cannot open inputs {}", path.display()))?;
-    let mut out: Vec<TimedAction> = Vec::new();
-    for (i, line) in BufReader::new(file).lines().enumerate() {
-        let line = line.with_context(|| format!("{}:{}", path.display(), i + 1))?;
-        if line.trim().is_empty() || line.trim_start().starts_with('#') {
-            continue;
-        }
-        let action: TimedAction = serde_json::from_str(&line)
-            .with_context(|| format!("{}:{}: not an input line", path.display(), i + 1))?;
-        if let Some(last) = out.last() {
-            if action.frame < last.frame {
-                bail!(
-                    "{}:{}: frame {} comes after frame {}; inputs must be in frame order",
-                    path.display(),
-                    i + 1,
-                    action.frame,
-                    last.frame
-                );
-            }
-        }
-        out.push(action);
-    }
-    Ok(out)
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read inputs {}", path.display()))?;
+    parse_input_log(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
 fn simulate(
@@ -121,6 +202,7 @@ fn simulate(
     mut overrides: Vec<String>,
     dump_path: Option<&Path>,
     inputs: Option<&Path>,
+    wire_stats: bool,
 ) -> Result<()> {
     if let Some(seed) = seed {
         overrides.push(format!("seed={seed}"));
@@ -149,6 +231,7 @@ fn simulate(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} eta {eta}")
             .expect("the template is valid"),
     );
+    let mut wire = wire_stats.then(|| WireStats::new(&world));
     let mut next_input = inputs.iter().peekable();
     let mut refused = 0u64;
     let started = Instant::now();
@@ -171,6 +254,9 @@ fn simulate(
         stepping += t.elapsed();
         if let Some(out) = out.as_mut() {
             dump::write_frame(out, &world)?;
+        }
+        if let Some(w) = wire.as_mut() {
+            w.frame(&world);
         }
         progress.inc(1);
     }
@@ -198,5 +284,72 @@ fn simulate(
         stats.deepest_penetration,
         stats.kinetic_energy,
     );
+    if let Some(w) = wire {
+        w.report();
+    }
     Ok(())
+}
+
+/// Bytes on the wire, frame by frame (`simulate --wire-stats`).
+struct WireStats {
+    encoder: FrameEncoder,
+    statics_bytes: usize,
+    frames: u64,
+    bytes: u64,
+    key_frames: (u64, u64),
+    body_frames: u64,
+    particle_frames: u64,
+}
+
+impl WireStats {
+    fn new(world: &World) -> Self {
+        let mut w = WireStats {
+            encoder: FrameEncoder::new(60),
+            statics_bytes: wire::statics_snapshot(world).len(),
+            frames: 0,
+            bytes: 0,
+            key_frames: (0, 0),
+            body_frames: 0,
+            particle_frames: 0,
+        };
+        w.frame(world);
+        w
+    }
+
+    fn frame(&mut self, world: &World) {
+        let bytes = wire::encode_frame(&mut self.encoder, world, 0.0, 0);
+        let header = peek_header(&bytes).expect("own frames read back");
+        self.frames += 1;
+        self.bytes += bytes.len() as u64;
+        if header.kind == KIND_KEY {
+            self.key_frames.0 += 1;
+            self.key_frames.1 += bytes.len() as u64;
+        }
+        self.body_frames += header.stats.dynamic_bodies as u64;
+        self.particle_frames += header.stats.particles as u64;
+    }
+
+    fn report(&self) {
+        let per = |num: u64, den: u64| {
+            if den > 0 {
+                num as f64 / den as f64
+            } else {
+                0.0
+            }
+        };
+        let deltas = self.frames - self.key_frames.0;
+        let payload = self.bytes - self.frames * HEADER_BYTES as u64;
+        eprintln!(
+            "wire: {} frames, {:.1} bytes/frame on average ({:.1} in key frames, {:.1} in delta frames; {} of header each);              statics snapshot {} bytes once; {:.1} dynamic bodies and {:.1} particles a frame on average;              {:.3} bytes per body-or-particle a frame beyond the header",
+            self.frames,
+            per(self.bytes, self.frames),
+            per(self.key_frames.1, self.key_frames.0),
+            per(self.bytes - self.key_frames.1, deltas),
+            HEADER_BYTES,
+            self.statics_bytes,
+            per(self.body_frames, self.frames),
+            per(self.particle_frames, self.frames),
+            per(payload, self.body_frames + self.particle_frames),
+        );
+    }
 }

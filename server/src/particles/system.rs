@@ -103,6 +103,9 @@ impl ParticleDef {
 /// All particles of a world, one array per field.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Particles {
+    /// Stable ids, increasing in creation order (what the wire protocol tracks).
+    pub id: Vec<u32>,
+    next_id: u32,
     // Hot: read and written by every update.
     pub x: Vec<f32>,
     pub y: Vec<f32>,
@@ -117,8 +120,10 @@ pub struct Particles {
     pub size_delta: Vec<f32>,
     // Cold: read only to draw.
     pub initial_life: Vec<f32>,
-    pub color: Vec<Vec4>,
-    pub color_delta: Vec<Vec4>,
+    /// Start colour, RGBA.
+    pub color: Vec<[f32; 4]>,
+    /// Colour change per update, RGBA.
+    pub color_delta: Vec<[f32; 4]>,
 }
 
 impl Particles {
@@ -134,6 +139,8 @@ impl Particles {
     /// definition overrides it.
     pub fn push(&mut self, def: &ParticleDef, gravity: Vec2) {
         let a = def.gravity.unwrap_or(gravity);
+        self.id.push(self.next_id);
+        self.next_id = self.next_id.wrapping_add(1);
         self.x.push(def.pos.x);
         self.y.push(def.pos.y);
         self.vx.push(def.vel.x);
@@ -145,23 +152,20 @@ impl Particles {
         self.drag.push(def.drag);
         self.size_delta.push(def.size_delta);
         self.initial_life.push(def.life);
-        self.color.push(def.color);
+        self.color.push(def.color.to_array());
         // The chapter's setFinalColor: the colour walks to the final one over the life.
         let delta = if def.life != 0.0 {
             (def.final_color - def.color) / def.life
         } else {
             Vec4::ZERO
         };
-        self.color_delta.push(delta);
-    }
-
-    pub fn clear(&mut self) {
-        *self = Particles::default();
+        self.color_delta.push(delta.to_array());
     }
 
     /// The colour of particle `i` now: start colour plus one delta per update lived.
     pub fn color_of(&self, i: usize) -> Vec4 {
-        self.color[i] + self.color_delta[i] * (self.initial_life[i] - self.life[i])
+        Vec4::from(self.color[i])
+            + Vec4::from(self.color_delta[i]) * (self.initial_life[i] - self.life[i])
     }
 
     pub fn pos(&self, i: usize) -> Vec2 {
@@ -217,6 +221,7 @@ impl Particles {
             }
             v.truncate(w);
         }
+        compact(&mut self.id, &keep);
         compact(&mut self.x, &keep);
         compact(&mut self.y, &keep);
         compact(&mut self.vx, &keep);

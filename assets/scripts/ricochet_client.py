@@ -1,0 +1,266 @@
+#!/usr/bin/env python3
+"""A Ricochet client in Python: sends commands and decodes frames.
+
+Needs only the standard library and `eclipse-zenoh` from PyPI:
+
+    pip install eclipse-zenoh==1.10.2
+    python3 assets/scripts/ricochet_client.py send '{"do": "press", "dir": "right"}'
+    python3 assets/scripts/ricochet_client.py send spawn_minion at=[100,60]
+    python3 assets/scripts/ricochet_client.py watch --frames 120
+
+`watch` prints one JSON object per frame: frame, time, the dynamic bodies (id, x, y, vx,
+vy, collided), the static body count from the snapshot, particles (x, y, size, rgba) and
+the step's figures. The frame layout is documented in protocol/src/frame.rs; this file
+is a second, independent reader of it.
+"""
+import argparse
+import json
+import struct
+import sys
+import time
+
+POS_QUANTUM = 1.0 / 1024.0
+VEL_QUANTUM = 1.0 / 256.0
+PARTICLE_QUANTUM = 1.0 / 256.0
+COLOR_SCALE = 63.75
+KIND_DELTA, KIND_KEY, KIND_STATICS = 0, 1, 2
+NEW, POS, VEL, COLLIDED, REMOVED = 0x01, 0x02, 0x04, 0x08, 0x10
+STATS = ("step_ms", "contacts", "relaxation_iterations", "deepest_penetration", "kinetic_energy",
+         "particle_contacts", "overruns", "dynamic_bodies", "particles", "emitters")
+STATS_FORMAT = "<fIIffIIIII"
+
+
+class DecodeError(Exception):
+    pass
+
+
+class Reader:
+    def __init__(self, data):
+        self.data = memoryview(data)
+        self.at = 0
+
+    def take(self, n):
+        if self.at + n > len(self.data):
+            raise DecodeError(f"cut short at byte {self.at}")
+        chunk = self.data[self.at:self.at + n]
+        self.at += n
+        return chunk
+
+    def unpack(self, fmt):
+        return struct.unpack(fmt, self.take(struct.calcsize(fmt)))
+
+    def varint(self):
+        value, shift = 0, 0
+        while True:
+            b = self.take(1)[0]
+            value |= (b & 0x7F) << shift
+            if not b & 0x80:
+                return value
+            shift += 7
+            if shift > 63:
+                raise DecodeError("varint longer than 64 bits")
+
+    def svarint(self):
+        v = self.varint()
+        return (v >> 1) ^ -(v & 1)
+
+    def text(self):
+        return bytes(self.take(self.varint())).decode("utf-8")
+
+
+class FrameDecoder:
+    """What a receiver knows of a world, kept up to date frame by frame."""
+
+    def __init__(self):
+        self.bodies = {}      # key -> dict
+        self.statics = {}     # key -> dict
+        self.particles = {}   # id -> dict
+        self.emitters = []
+        self.frame = None
+        self.time = 0.0
+        self.stats = {}
+        self.synced = False
+
+    def apply(self, data):
+        r = Reader(data)
+        if bytes(r.take(3)) != b"RCF":
+            raise DecodeError("no RCF magic")
+        version, kind = r.unpack("<BB")
+        if version != 1:
+            raise DecodeError(f"frame version {version}, this reader knows 1")
+        frame, t = r.unpack("<Qd")
+        stats = dict(zip(STATS, r.unpack(STATS_FORMAT)))
+        if kind == KIND_DELTA and self.synced and frame <= self.frame:
+            raise DecodeError(f"frame {frame} is older than the state held")
+        if kind == KIND_DELTA and not (self.synced and frame == self.frame + 1):
+            self.synced = False
+            raise DecodeError(f"delta frame {frame} does not follow {self.frame}")
+        emitters = []
+        for _ in range(r.varint()):
+            x, y = r.unpack("<ff")
+            emitters.append({"x": x, "y": y, "remaining": r.varint()})
+        bodies = {} if kind != KIND_DELTA else {k: dict(v) for k, v in self.bodies.items()}
+        key = 0
+        for _ in range(r.varint()):
+            key += r.varint()
+            flags = r.take(1)[0]
+            if flags & REMOVED:
+                bodies.pop(key, None)
+                continue
+            if flags & NEW:
+                circle = r.take(1)[0] != 0
+                w, h = r.unpack("<ff")
+                ident, group = r.text(), r.text()
+                qpos = [r.svarint(), r.svarint()]
+                qvel = [r.svarint(), r.svarint()]
+                bodies[key] = {"id": ident, "group": group, "circle": circle, "size": [w, h], "qpos": qpos, "qvel": qvel}
+            else:
+                b = bodies.get(key)
+                if b is None:
+                    raise DecodeError(f"update of unknown body {key}")
+                if flags & POS:
+                    b["qpos"] = [b["qpos"][0] + r.svarint(), b["qpos"][1] + r.svarint()]
+                if flags & VEL:
+                    b["qvel"] = [b["qvel"][0] + r.svarint(), b["qvel"][1] + r.svarint()]
+            bodies[key]["collided"] = bool(flags & COLLIDED)
+        particles = {} if kind != KIND_DELTA else self.particles
+        pid = 0
+        for _ in range(r.varint()):
+            pid += r.varint()
+            flags = r.take(1)[0]
+            if flags & REMOVED:
+                particles.pop(pid, None)
+                continue
+            if flags & NEW:
+                qpos = [r.svarint(), r.svarint()]
+                c0 = list(r.take(4))
+                c1 = list(r.take(4))
+                life0, life, size, factor = r.unpack("<ffff")
+                particles[pid] = {"qpos": qpos, "c0": c0, "c1": c1, "life0": life0, "life": life,
+                                  "size": size, "factor": factor, "at": frame}
+            else:
+                p = particles.get(pid)
+                if p is None:
+                    raise DecodeError(f"update of unknown particle {pid}")
+                if flags & POS:
+                    p["qpos"] = [p["qpos"][0] + r.svarint(), p["qpos"][1] + r.svarint()]
+        if r.at != len(r.data):
+            raise DecodeError(f"{len(r.data) - r.at} bytes left over")
+        if kind == KIND_STATICS:
+            self.statics = bodies
+            return kind
+        self.bodies, self.particles, self.emitters = bodies, particles, emitters
+        self.frame, self.time, self.stats, self.synced = frame, t, stats, True
+        return kind
+
+    def particle_view(self, p):
+        elapsed = self.frame - p["at"]
+        age = p["life0"] - (p["life"] - elapsed)
+        f = age / p["life0"] if p["life0"] else 0.0
+        color = [a / COLOR_SCALE + (b - a) / COLOR_SCALE * f for a, b in zip(p["c0"], p["c1"])]
+        return {"x": p["qpos"][0] * PARTICLE_QUANTUM, "y": p["qpos"][1] * PARTICLE_QUANTUM,
+                "size": p["size"] * p["factor"] ** elapsed, "color": color}
+
+    def view(self):
+        bodies = [{"id": b["id"], "x": b["qpos"][0] * POS_QUANTUM, "y": b["qpos"][1] * POS_QUANTUM,
+                   "vx": b["qvel"][0] * VEL_QUANTUM, "vy": b["qvel"][1] * VEL_QUANTUM, "collided": b["collided"]}
+                  for _, b in sorted(self.bodies.items())]
+        return {"frame": self.frame, "t": self.time, "bodies": bodies, "statics": len(self.statics),
+                "particles": [self.particle_view(p) for _, p in sorted(self.particles.items())],
+                "emitters": len(self.emitters), "stats": self.stats}
+
+
+def open_session(args):
+    import zenoh
+    conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(args.mode))
+    conf.insert_json5("connect/endpoints", json.dumps(args.connect or ["tcp/127.0.0.1:7447"]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
+def parse_command(words):
+    """JSON, or NAME ARG=VALUE ... with JSON values (a bare word is a string)."""
+    text = " ".join(words)
+    if text.lstrip().startswith("{"):
+        return json.loads(text)
+    command = {"do": words[0]}
+    for arg in words[1:]:
+        name, _, value = arg.partition("=")
+        try:
+            command[name] = json.loads(value)
+        except ValueError:
+            command[name] = value
+    return command
+
+
+def request(session, world, command, timeout):
+    payload = command if isinstance(command, (bytes, bytearray)) else json.dumps(command).encode()
+    for reply in session.get(f"ricochet/{world}/rpc", payload=payload, timeout=timeout):
+        sample = reply.ok if reply.ok is not None else reply.err
+        return json.loads(sample.payload.to_bytes())
+    raise TimeoutError(f"no reply from world {world!r} within {timeout} s: is its server up?")
+
+
+def fetch(session, key, timeout):
+    for reply in session.get(key, timeout=timeout):
+        if reply.ok is not None:
+            return reply.ok.payload.to_bytes()
+    return None
+
+
+def watch(session, world, frames, seconds, timeout):
+    decoder = FrameDecoder()
+    sub = session.declare_subscriber(f"ricochet/{world}/frame")
+    # Statics from the snapshot, the dynamic state now from the state query; the frames
+    # that follow apply on top (older ones already queued are skipped).
+    for key in ("snapshot", "state"):
+        payload = fetch(session, f"ricochet/{world}/{key}", timeout)
+        if payload is not None:
+            decoder.apply(payload)
+    seen, began = 0, time.monotonic()
+    while (frames is None or seen < frames) and (seconds is None or time.monotonic() - began < seconds):
+        sample = sub.try_recv()
+        if sample is None:
+            time.sleep(0.002)
+            if time.monotonic() - began > timeout and seen == 0:
+                raise TimeoutError(f"no frames from world {world!r} within {timeout} s")
+            continue
+        try:
+            decoder.apply(sample.payload.to_bytes())
+        except DecodeError:
+            continue
+        seen += 1
+        print(json.dumps(decoder.view()), flush=True)
+    sub.undeclare()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--world", default="default")
+    ap.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
+    ap.add_argument("--mode", default="peer", choices=["peer", "client"])
+    ap.add_argument("--timeout", type=float, default=5.0)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    send = sub.add_parser("send", help="send one command and print the reply")
+    send.add_argument("command", nargs="+")
+    send.add_argument("--raw", action="store_true", help="send the text as it is, even if it is not JSON")
+    w = sub.add_parser("watch", help="print every frame as JSON")
+    w.add_argument("--frames", type=int)
+    w.add_argument("--seconds", type=float)
+    args = ap.parse_args()
+    session = open_session(args)
+    try:
+        if args.cmd == "send":
+            command = " ".join(args.command).encode() if args.raw else parse_command(args.command)
+            reply = request(session, args.world, command, args.timeout)
+            print(json.dumps(reply), flush=True)
+            return 0 if reply.get("ok") else 1
+        watch(session, args.world, args.frames, args.seconds, args.timeout)
+        return 0
+    finally:
+        session.close()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,314 @@
+//! A typed zenoh client of a Ricochet world, for the command-line client, the viewer and
+//! tests. Blocking calls (zenoh's `Wait`); no async runtime is needed by the caller.
+
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Context, Result};
+use zenoh::handlers::{FifoChannelHandler, RingChannel, RingChannelHandler};
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::Sample;
+use zenoh::{Session, Wait};
+
+use crate::command::{Command, Event, Reply};
+use crate::keys::{self, WorldKeys};
+
+/// The endpoint a server listens on, and clients connect to, when none is given.
+pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
+
+/// How a zenoh session joins the network.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Mode {
+    /// Talks directly to the peers it connects to or that connect to it.
+    #[default]
+    Peer,
+    /// Talks only through the router it connects to.
+    Client,
+    /// Routes for others: where worlds on several hosts meet.
+    Router,
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "peer" => Ok(Mode::Peer),
+            "client" => Ok(Mode::Client),
+            "router" => Ok(Mode::Router),
+            other => Err(format!("mode `{other}` is not peer, client or router")),
+        }
+    }
+}
+
+impl Mode {
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Peer => "peer",
+            Mode::Client => "client",
+            Mode::Router => "router",
+        }
+    }
+}
+
+/// Where and how a session connects.
+#[derive(Clone, Debug, Default)]
+pub struct Network {
+    pub mode: Mode,
+    /// Endpoints to connect to (`tcp/host:port`).
+    pub connect: Vec<String>,
+    /// Endpoints to listen on.
+    pub listen: Vec<String>,
+    /// Multicast scouting (off by default: explicit endpoints only).
+    pub multicast: bool,
+}
+
+impl Network {
+    /// A client's network: connect to `connect`, or to the default endpoint.
+    pub fn client(mode: Mode, connect: Vec<String>) -> Self {
+        let connect = if connect.is_empty() {
+            vec![DEFAULT_ENDPOINT.to_string()]
+        } else {
+            connect
+        };
+        Network {
+            mode,
+            connect,
+            listen: Vec::new(),
+            multicast: false,
+        }
+    }
+
+    /// The zenoh configuration.
+    pub fn config(&self) -> Result<zenoh::Config> {
+        let mut config = zenoh::Config::default();
+        let set = |config: &mut zenoh::Config, key: &str, value: serde_json::Value| {
+            config
+                .insert_json5(key, &value.to_string())
+                .map_err(|e| anyhow!("zenoh configuration {key} = {value}: {e}"))
+        };
+        set(&mut config, "mode", serde_json::json!(self.mode.name()))?;
+        set(
+            &mut config,
+            "connect/endpoints",
+            serde_json::json!(self.connect),
+        )?;
+        set(
+            &mut config,
+            "listen/endpoints",
+            serde_json::json!(self.listen),
+        )?;
+        set(
+            &mut config,
+            "scouting/multicast/enabled",
+            serde_json::json!(self.multicast),
+        )?;
+        // Keep retrying a connect endpoint that is not up yet, so a client may start
+        // before its server or router.
+        set(&mut config, "connect/timeout_ms", serde_json::json!(-1))?;
+        Ok(config)
+    }
+
+    pub fn open(&self) -> Result<Session> {
+        zenoh::open(self.config()?).wait().map_err(|e| {
+            anyhow!(
+                "cannot open a zenoh session ({} mode, connect {:?}, listen {:?}): {e}",
+                self.mode.name(),
+                self.connect,
+                self.listen
+            )
+        })
+    }
+}
+
+/// Frames as they arrive, all of them, in order (up to a large backlog).
+pub type FrameStream = Subscriber<FifoChannelHandler<Sample>>;
+/// Only the latest frames: a slow reader drops the oldest instead of stalling anything.
+pub type LatestFrames = Subscriber<RingChannelHandler<Sample>>;
+
+/// A client of one world.
+pub struct Client {
+    session: Session,
+    keys: WorldKeys,
+}
+
+impl Client {
+    /// Opens a session and addresses `world`.
+    pub fn open(network: &Network, world: &str) -> Result<Self> {
+        let keys = WorldKeys::new(world).map_err(|e| anyhow!(e))?;
+        Ok(Client {
+            session: network.open()?,
+            keys,
+        })
+    }
+
+    /// Addresses `world` over an existing session.
+    pub fn with_session(session: Session, world: &str) -> Result<Self> {
+        let keys = WorldKeys::new(world).map_err(|e| anyhow!(e))?;
+        Ok(Client { session, keys })
+    }
+
+    pub fn session(&self) -> &Session {
+        &self.session
+    }
+
+    pub fn keys(&self) -> &WorldKeys {
+        &self.keys
+    }
+
+    /// Sends a command without waiting: it is applied at the next frame boundary; a
+    /// refusal is published as an event.
+    pub fn send(&self, command: &Command) -> Result<()> {
+        self.send_raw(command.to_json().into_bytes())
+    }
+
+    /// Sends raw bytes as a command (tests send malformed ones).
+    pub fn send_raw(&self, bytes: Vec<u8>) -> Result<()> {
+        self.session
+            .put(&self.keys.cmd, bytes)
+            .wait()
+            .map_err(|e| anyhow!("send: {e}"))
+    }
+
+    /// Sends a command and waits for the reply.
+    pub fn request(&self, command: &Command, timeout: Duration) -> Result<Reply> {
+        self.request_raw(command.to_json().into_bytes(), timeout)
+    }
+
+    /// Sends raw bytes as a request and waits for the reply.
+    pub fn request_raw(&self, bytes: Vec<u8>, timeout: Duration) -> Result<Reply> {
+        let replies = self
+            .session
+            .get(&self.keys.rpc)
+            .payload(bytes)
+            .timeout(timeout)
+            .wait()
+            .map_err(|e| anyhow!("request: {e}"))?;
+        let reply = replies
+            .recv_timeout(timeout + Duration::from_millis(500))
+            .map_err(|e| anyhow!("request: {e}"))?
+            .ok_or_else(|| {
+                anyhow!(
+                    "no reply from world `{}` within {timeout:?}: is its server up?",
+                    self.keys.world
+                )
+            })?;
+        let payload = match reply.result() {
+            Ok(sample) => sample.payload().to_bytes().into_owned(),
+            Err(err) => err.payload().to_bytes().into_owned(),
+        };
+        serde_json::from_slice(&payload)
+            .with_context(|| format!("unreadable reply: {}", String::from_utf8_lossy(&payload)))
+    }
+
+    /// Every frame from now on, in order.
+    pub fn frames(&self) -> Result<FrameStream> {
+        self.session
+            .declare_subscriber(&self.keys.frame)
+            .with(zenoh::handlers::FifoChannel::new(4096))
+            .wait()
+            .map_err(|e| anyhow!("subscribe to frames: {e}"))
+    }
+
+    /// The latest `capacity` frames: for viewers, which must never hold the server back.
+    pub fn latest_frames(&self, capacity: usize) -> Result<LatestFrames> {
+        self.session
+            .declare_subscriber(&self.keys.frame)
+            .with(RingChannel::new(capacity.max(1)))
+            .wait()
+            .map_err(|e| anyhow!("subscribe to frames: {e}"))
+    }
+
+    /// Statics snapshots re-published when static bodies change.
+    pub fn snapshots(&self) -> Result<FrameStream> {
+        self.session
+            .declare_subscriber(&self.keys.snapshot)
+            .with(zenoh::handlers::FifoChannel::new(64))
+            .wait()
+            .map_err(|e| anyhow!("subscribe to snapshots: {e}"))
+    }
+
+    /// Events: one per command the server handled.
+    pub fn events(&self) -> Result<FrameStream> {
+        self.session
+            .declare_subscriber(&self.keys.event)
+            .with(zenoh::handlers::FifoChannel::new(4096))
+            .wait()
+            .map_err(|e| anyhow!("subscribe to events: {e}"))
+    }
+
+    /// Fetches the statics snapshot (what a late joiner needs besides the frames).
+    pub fn snapshot(&self, timeout: Duration) -> Result<Vec<u8>> {
+        self.fetch(&self.keys.snapshot, timeout)
+    }
+
+    /// Fetches a key frame of the dynamic state now: a late joiner applies it, then the
+    /// frames that follow it, instead of waiting for the next key frame.
+    pub fn state(&self, timeout: Duration) -> Result<Vec<u8>> {
+        self.fetch(&self.keys.state, timeout)
+    }
+
+    /// Subscribes to frames and brings a decoder up to date: statics from the snapshot,
+    /// dynamic state from a resync key frame. Frames the subscription already holds that
+    /// are not newer are skipped by the decoder.
+    pub fn join(&self, timeout: Duration) -> Result<(FrameStream, crate::frame::FrameDecoder)> {
+        let stream = self.frames()?;
+        let mut decoder = crate::frame::FrameDecoder::new();
+        decoder
+            .apply(&self.snapshot(timeout)?)
+            .map_err(|e| anyhow!("snapshot: {e}"))?;
+        decoder
+            .apply(&self.state(timeout)?)
+            .map_err(|e| anyhow!("state: {e}"))?;
+        Ok((stream, decoder))
+    }
+
+    fn fetch(&self, key: &str, timeout: Duration) -> Result<Vec<u8>> {
+        let replies = self
+            .session
+            .get(key)
+            .timeout(timeout)
+            .wait()
+            .map_err(|e| anyhow!("{key}: {e}"))?;
+        let reply = replies
+            .recv_timeout(timeout + Duration::from_millis(500))
+            .map_err(|e| anyhow!("{key}: {e}"))?
+            .ok_or_else(|| {
+                anyhow!(
+                    "no answer on {key} within {timeout:?}: is the server of world `{}` up?",
+                    self.keys.world
+                )
+            })?;
+        match reply.result() {
+            Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+            Err(err) => bail!(
+                "{key} refused: {}",
+                String::from_utf8_lossy(&err.payload().to_bytes())
+            ),
+        }
+    }
+}
+
+/// Decodes an event payload.
+pub fn parse_event(sample: &Sample) -> Result<Event> {
+    serde_json::from_slice(&sample.payload().to_bytes()).context("unreadable event")
+}
+
+/// The worlds whose servers are up, by their liveliness tokens.
+pub fn list_worlds(session: &Session, timeout: Duration) -> Result<Vec<String>> {
+    let replies = session
+        .liveliness()
+        .get(keys::ALL_ALIVE)
+        .timeout(timeout)
+        .wait()
+        .map_err(|e| anyhow!("list worlds: {e}"))?;
+    let mut worlds = Vec::new();
+    while let Ok(reply) = replies.recv() {
+        if let Ok(sample) = reply.result() {
+            if let Some(w) = keys::world_of_alive(sample.key_expr().as_str()) {
+                worlds.push(w.to_string());
+            }
+        }
+    }
+    worlds.sort();
+    worlds.dedup();
+    Ok(worlds)
+}

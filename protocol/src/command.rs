@@ -1,0 +1,299 @@
+//! Commands: what clients ask of a world, in a text form a person can type.
+//!
+//! A command is a JSON object whose `do` field names it. World actions
+//! (`{"do": "fire_dye_pack", "at": [50, 60]}`) are applied by the engine at a frame
+//! boundary; server controls (`{"do": "pause"}`, `{"do": "step", "n": 10}`) steer the
+//! server's clock. [`Command::parse`] tells the two apart and names what is wrong with a
+//! malformed one.
+
+use serde::{Deserialize, Serialize};
+
+/// A direction of the hero's controls (the chapter's WASD keys).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Direction {
+    Up,
+    Down,
+    Left,
+    Right,
+}
+
+/// A point `[x, y]` in world units.
+pub type Point = [f64; 2];
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Action {
+    /// Starts holding a direction of the hero's controls.
+    Press { dir: Direction },
+    /// Stops holding a direction.
+    Release { dir: Direction },
+    /// Sends a dye pack from `at`, homing on the hero.
+    FireDyePack { at: Point },
+    /// Spawns a patrolling minion at `at` (a circle unless `shape` is "rect").
+    SpawnMinion {
+        at: Point,
+        #[serde(default)]
+        shape: Option<String>,
+    },
+    /// Spawns a dumb minion (the stability demo's test body) at `at`.
+    SpawnDumbMinion { at: Point },
+    /// Selects the body under `at` (among `group`, or any dynamic body).
+    Select {
+        at: Point,
+        #[serde(default)]
+        group: Option<String>,
+    },
+    /// Moves the selected body to `to`, its velocity zeroed.
+    Drag { to: Point },
+    /// Forgets the selection.
+    Deselect,
+    /// Adds a random velocity to every dumb minion.
+    Agitate {
+        #[serde(default)]
+        strength: Option<f64>,
+    },
+    /// Removes every body of a group.
+    Clear { group: String },
+    /// Spawns `count` particles of a preset at `at`.
+    SpawnParticles {
+        preset: String,
+        at: Point,
+        #[serde(default = "one")]
+        count: u32,
+    },
+    /// Starts an emitter of `count` particles of a preset at `at`.
+    StartEmitter {
+        preset: String,
+        count: u32,
+        at: Point,
+    },
+    /// Sets a world parameter by name to a value in the scene file's form:
+    /// `{"do": "set", "name": "gravity", "value": [0, -9.8]}`.
+    Set {
+        name: String,
+        value: serde_json::Value,
+    },
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// Controls of the server's clock and world, besides the world actions.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ServerCommand {
+    /// Stops stepping; commands are still applied.
+    Pause,
+    /// Steps in real time again.
+    Resume,
+    /// Runs `n` steps at once (pausing first), then replies.
+    Step {
+        #[serde(default = "one")]
+        n: u32,
+    },
+    /// Reloads the world's scene from scratch: frame 0, the scene's seed.
+    Reset {
+        /// Stay paused after the reset (for replays).
+        #[serde(default)]
+        paused: bool,
+    },
+    /// Loads another scene: a path on the server's machine, or the scene's TOML text.
+    Load {
+        #[serde(default)]
+        path: Option<String>,
+        #[serde(default)]
+        text: Option<String>,
+    },
+}
+
+/// The names of the server commands, to tell them from world actions.
+pub const SERVER_COMMANDS: &[&str] = &["pause", "resume", "step", "reset", "load"];
+
+/// Any command a client can send.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Command {
+    Server(ServerCommand),
+    World(Action),
+}
+
+/// The largest command accepted, in bytes (a scene's text included).
+pub const MAX_COMMAND_BYTES: usize = 1 << 20;
+
+impl Command {
+    /// Parses a command from JSON, naming what is wrong: not JSON, no `do`, an unknown
+    /// command, or a bad argument of a known one.
+    pub fn parse(bytes: &[u8]) -> Result<Command, String> {
+        if bytes.len() > MAX_COMMAND_BYTES {
+            return Err(format!(
+                "command of {} bytes is larger than {MAX_COMMAND_BYTES}",
+                bytes.len()
+            ));
+        }
+        let value: serde_json::Value =
+            serde_json::from_slice(bytes).map_err(|e| format!("not JSON: {e}"))?;
+        let name = value
+            .get("do")
+            .ok_or("a command is a JSON object with a `do` field naming it")?
+            .as_str()
+            .ok_or("`do` must be a string")?
+            .to_string();
+        if SERVER_COMMANDS.contains(&name.as_str()) {
+            serde_json::from_value(value)
+                .map(Command::Server)
+                .map_err(|e| format!("`{name}`: {e}"))
+        } else {
+            serde_json::from_value(value).map(Command::World).map_err(|e| {
+                let msg = e.to_string();
+                if msg.starts_with(&format!("unknown variant `{name}`")) {
+                    format!("unknown command `{name}` (server: {}; world: press, release, fire_dye_pack, spawn_minion, spawn_dumb_minion, select, drag, deselect, agitate, clear, spawn_particles, start_emitter, set)", SERVER_COMMANDS.join(", "))
+                } else {
+                    format!("`{name}`: {msg}")
+                }
+            })
+        }
+    }
+
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("commands serialise")
+    }
+}
+
+/// The reply to a command sent as a request.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Reply {
+    pub ok: bool,
+    /// The frame the command took effect in: it is applied before step `frame + 1`.
+    pub frame: u64,
+    /// Ids the command created or chose.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ids: Vec<String>,
+    /// Why the command was refused.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// What the server publishes on the event key for every command it handles: the
+/// applied ones form the world's input log.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Event {
+    pub frame: u64,
+    pub ok: bool,
+    /// The command as applied (absent when it could not be parsed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub command: Option<Command>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ids: Vec<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// One line of an input log (`ricochet record`, `ricochet-server simulate --inputs`): an
+/// action applied after `frame` steps.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimedAction {
+    pub frame: u64,
+    pub action: Action,
+}
+
+/// Reads an input log: JSON Lines of [`TimedAction`], in frame order; blank lines and
+/// lines starting with `#` are skipped. Errors name the 1-based line.
+pub fn parse_input_log(text: &str) -> Result<Vec<TimedAction>, String> {
+    let mut out: Vec<TimedAction> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let action: TimedAction = serde_json::from_str(line)
+            .map_err(|e| format!("line {}: not an input line: {e}", i + 1))?;
+        if let Some(last) = out.last() {
+            if action.frame < last.frame {
+                return Err(format!(
+                    "line {}: frame {} comes after frame {}; inputs must be in frame order",
+                    i + 1,
+                    action.frame,
+                    last.frame
+                ));
+            }
+        }
+        out.push(action);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn actions_read_as_json_a_person_can_type() {
+        let a: Action = serde_json::from_str(r#"{"do":"fire_dye_pack","at":[50,60.5]}"#).unwrap();
+        assert_eq!(a, Action::FireDyePack { at: [50.0, 60.5] });
+        let a: Action = serde_json::from_str(r#"{"do":"press","dir":"left"}"#).unwrap();
+        assert_eq!(
+            a,
+            Action::Press {
+                dir: Direction::Left
+            }
+        );
+        let a: Action =
+            serde_json::from_str(r#"{"do":"set","name":"gravity","value":[0,-10]}"#).unwrap();
+        assert!(matches!(a, Action::Set { .. }));
+        let a: Action =
+            serde_json::from_str(r#"{"do":"spawn_particles","preset":"fire","at":[1,2]}"#).unwrap();
+        assert_eq!(
+            a,
+            Action::SpawnParticles {
+                preset: "fire".into(),
+                at: [1.0, 2.0],
+                count: 1
+            }
+        );
+    }
+
+    #[test]
+    fn commands_tell_server_controls_from_world_actions() {
+        assert_eq!(
+            Command::parse(br#"{"do":"pause"}"#),
+            Ok(Command::Server(ServerCommand::Pause))
+        );
+        assert_eq!(
+            Command::parse(br#"{"do":"step"}"#),
+            Ok(Command::Server(ServerCommand::Step { n: 1 }))
+        );
+        assert_eq!(
+            Command::parse(br#"{"do":"release","dir":"up"}"#),
+            Ok(Command::World(Action::Release { dir: Direction::Up }))
+        );
+        // Round trip through the text form.
+        let c = Command::World(Action::StartEmitter {
+            preset: "fire".into(),
+            count: 9,
+            at: [1.0, 2.0],
+        });
+        assert_eq!(Command::parse(c.to_json().as_bytes()), Ok(c));
+    }
+
+    #[test]
+    fn malformed_commands_are_refused_with_the_reason() {
+        for (text, needle) in [
+            ("not json", "not JSON"),
+            (r#"[1, 2]"#, "`do` field"),
+            (r#"{"do": 3}"#, "must be a string"),
+            (r#"{"do":"fly"}"#, "unknown command `fly`"),
+            (r#"{"do":"fire_dye_pack"}"#, "at"),
+            (r#"{"do":"press","dir":"sideways"}"#, "sideways"),
+            (r#"{"do":"drag","to":[1,2],"speed":3}"#, "speed"),
+            (r#"{"do":"step","n":-1}"#, "step"),
+        ] {
+            let e = Command::parse(text.as_bytes()).unwrap_err();
+            assert!(e.contains(needle), "{text}: {e}");
+        }
+        let huge = vec![b' '; MAX_COMMAND_BYTES + 1];
+        assert!(Command::parse(&huge).unwrap_err().contains("larger"));
+    }
+}

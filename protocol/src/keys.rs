@@ -1,0 +1,88 @@
+//! Key expressions of a world named `<world>`:
+//!
+//! | key | kind | payload |
+//! |---|---|---|
+//! | `ricochet/<world>/cmd` | subscriber (server) | a command, JSON, fire and forget |
+//! | `ricochet/<world>/rpc` | queryable (server) | a command, JSON; the reply is a [`crate::command::Reply`] |
+//! | `ricochet/<world>/frame` | publication, every step | a binary frame ([`crate::frame`]) |
+//! | `ricochet/<world>/snapshot` | publication when statics change, and queryable | a binary snapshot of the static bodies |
+//! | `ricochet/<world>/state` | queryable | a key frame of the dynamic state now, for late joiners |
+//! | `ricochet/<world>/event` | publication | a [`crate::command::Event`] per handled command, JSON |
+//! | `ricochet/<world>/alive` | liveliness token | held while the server runs |
+//!
+//! A world name is 1 to 64 characters of `A-Z a-z 0-9 _ -`.
+
+/// The root of every key.
+pub const ROOT: &str = "ricochet";
+
+/// The world a server hosts when none is named.
+pub const DEFAULT_WORLD: &str = "default";
+
+/// Checks a world name.
+pub fn check_world(name: &str) -> Result<(), String> {
+    if name.is_empty() || name.len() > 64 {
+        return Err(format!("world name `{name}` must be 1 to 64 characters"));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || *c == '_' || *c == '-'))
+    {
+        return Err(format!(
+            "world name `{name}` has `{c}`: use A-Z a-z 0-9 _ -"
+        ));
+    }
+    Ok(())
+}
+
+/// The keys of one world.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WorldKeys {
+    pub world: String,
+    pub cmd: String,
+    pub rpc: String,
+    pub frame: String,
+    pub snapshot: String,
+    pub state: String,
+    pub event: String,
+    pub alive: String,
+}
+
+impl WorldKeys {
+    pub fn new(world: &str) -> Result<Self, String> {
+        check_world(world)?;
+        let k = |leaf: &str| format!("{ROOT}/{world}/{leaf}");
+        Ok(WorldKeys {
+            world: world.to_string(),
+            cmd: k("cmd"),
+            rpc: k("rpc"),
+            frame: k("frame"),
+            snapshot: k("snapshot"),
+            state: k("state"),
+            event: k("event"),
+            alive: k("alive"),
+        })
+    }
+}
+
+/// The liveliness key expression matching every world's token.
+pub const ALL_ALIVE: &str = "ricochet/*/alive";
+
+/// The world named by a liveliness token's key, `ricochet/<world>/alive`.
+pub fn world_of_alive(key: &str) -> Option<&str> {
+    key.strip_prefix("ricochet/")?.strip_suffix("/alive")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_of_a_world() {
+        let k = WorldKeys::new("arena-2").unwrap();
+        assert_eq!(k.frame, "ricochet/arena-2/frame");
+        assert_eq!(world_of_alive(&k.alive), Some("arena-2"));
+        assert!(WorldKeys::new("a/b").is_err());
+        assert!(WorldKeys::new("*").is_err());
+        assert!(WorldKeys::new("").is_err());
+    }
+}

@@ -1,0 +1,414 @@
+//! The authoritative server: hosts one world on zenoh and runs it in real time.
+//!
+//! The clock is an accumulator of whole steps: step k is due at `start + k dt`, computed
+//! from integers of nanoseconds, so it does not drift over hours. Commands that arrived
+//! since the last step are applied at the frame boundary, in arrival order, each stamped
+//! with the frame it took effect in. A step that starts more than one `dt` late is counted
+//! as an overrun; after more than [`MAX_CATCH_UP`] late steps the clock is re-anchored
+//! (the lost steps are counted, never silently dropped).
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use ricochet_protocol::client::Network;
+use ricochet_protocol::command::{Command, Event, Reply, ServerCommand};
+use ricochet_protocol::frame::FrameEncoder;
+use ricochet_protocol::keys::WorldKeys;
+use zenoh::qos::CongestionControl;
+use zenoh::Wait;
+
+use crate::scene;
+use crate::wire;
+use crate::world::World;
+
+/// Late steps run back to back before the clock gives up and re-anchors.
+pub const MAX_CATCH_UP: u64 = 5;
+/// Commands handled per frame boundary at most; the rest wait for the next one, so a
+/// flood cannot stall the clock.
+pub const MAX_COMMANDS_PER_FRAME: usize = 1000;
+
+/// Steps one `step` command may ask for: the server answers nothing else meanwhile.
+pub const MAX_STEPS_PER_COMMAND: u32 = 10_000;
+
+/// How to host a world.
+#[derive(Clone, Debug)]
+pub struct HostOptions {
+    pub scene: PathBuf,
+    pub world: String,
+    pub network: Network,
+    /// Start paused (step with commands).
+    pub paused: bool,
+    /// `NAME=VALUE` overrides of `[world]` fields.
+    pub overrides: Vec<String>,
+    /// A key frame every this many frames.
+    pub keyframe_interval: u64,
+    /// Stop after this many frames (for scripted runs); run until killed otherwise.
+    pub max_frames: Option<u64>,
+}
+
+/// The world, its scene and what the wire remembers of it.
+struct Hosted {
+    world: World,
+    scene_text: String,
+    scene_name: PathBuf,
+    overrides: Vec<String>,
+    encoder: FrameEncoder,
+    statics_revision: Option<u64>,
+    snapshot: Vec<u8>,
+    paused: bool,
+    overruns: u32,
+    last_step_ms: f32,
+}
+
+impl Hosted {
+    fn load(
+        scene_text: String,
+        scene_name: PathBuf,
+        overrides: Vec<String>,
+        keyframe_interval: u64,
+    ) -> Result<Self> {
+        let world = scene::parse(&scene_text, &scene_name, &overrides)?;
+        Ok(Hosted {
+            world,
+            scene_text,
+            scene_name,
+            overrides,
+            encoder: FrameEncoder::new(keyframe_interval),
+            statics_revision: None,
+            snapshot: Vec::new(),
+            paused: false,
+            overruns: 0,
+            last_step_ms: 0.0,
+        })
+    }
+
+    fn replace_world(&mut self, world: World) {
+        self.world = world;
+        self.encoder.force_key_frame();
+        self.statics_revision = None;
+    }
+
+    /// Re-encodes the statics snapshot if they changed; true when it did.
+    fn refresh_snapshot(&mut self) -> bool {
+        let rev = self.world.statics_revision();
+        if self.statics_revision == Some(rev) {
+            return false;
+        }
+        self.snapshot = wire::statics_snapshot(&self.world);
+        self.statics_revision = Some(rev);
+        true
+    }
+
+    fn encode_frame(&mut self) -> Vec<u8> {
+        wire::encode_frame(
+            &mut self.encoder,
+            &self.world,
+            self.last_step_ms,
+            self.overruns,
+        )
+    }
+
+    /// Applies one command; the reply says what it did.
+    fn handle(&mut self, command: &Command, publish: &mut dyn FnMut(&mut Hosted)) -> Reply {
+        let frame = self.world.frame();
+        let result: Result<Vec<String>, String> = match command {
+            Command::World(action) => self
+                .world
+                .apply(action)
+                .map(|o| o.ids)
+                .map_err(|e| e.to_string()),
+            Command::Server(ServerCommand::Pause) => {
+                self.paused = true;
+                Ok(Vec::new())
+            }
+            Command::Server(ServerCommand::Resume) => {
+                self.paused = false;
+                Ok(Vec::new())
+            }
+            Command::Server(ServerCommand::Step { n }) if *n > MAX_STEPS_PER_COMMAND => Err(
+                format!("`n` = {n} is more than {MAX_STEPS_PER_COMMAND} steps in one command"),
+            ),
+            Command::Server(ServerCommand::Step { n }) => {
+                self.paused = true;
+                for _ in 0..*n {
+                    self.step();
+                    publish(self);
+                }
+                Ok(Vec::new())
+            }
+            Command::Server(ServerCommand::Reset { paused }) => {
+                match scene::parse(&self.scene_text, &self.scene_name, &self.overrides) {
+                    Ok(world) => {
+                        self.replace_world(world);
+                        self.paused = *paused;
+                        // Frame 0 of the new world goes out at once.
+                        publish(self);
+                        Ok(Vec::new())
+                    }
+                    Err(e) => Err(e.to_string()),
+                }
+            }
+            Command::Server(ServerCommand::Load { path, text }) => {
+                let loaded = self.load_scene(path.as_deref(), text.as_deref());
+                if loaded.is_ok() {
+                    publish(self);
+                }
+                loaded
+            }
+        };
+        match result {
+            Ok(ids) => Reply {
+                ok: true,
+                frame,
+                ids,
+                error: None,
+            },
+            Err(error) => Reply {
+                ok: false,
+                frame,
+                ids: Vec::new(),
+                error: Some(error),
+            },
+        }
+    }
+
+    fn load_scene(
+        &mut self,
+        path: Option<&str>,
+        text: Option<&str>,
+    ) -> Result<Vec<String>, String> {
+        let (text, name) = match (path, text) {
+            (Some(p), None) => {
+                let text = std::fs::read_to_string(p)
+                    .map_err(|e| format!("cannot read scene {p}: {e}"))?;
+                (text, PathBuf::from(p))
+            }
+            (None, Some(t)) => (t.to_string(), PathBuf::from("<loaded scene>")),
+            _ => return Err("`load` takes either `path` or `text`".into()),
+        };
+        let world = scene::parse(&text, &name, &self.overrides).map_err(|e| e.to_string())?;
+        self.scene_text = text;
+        self.scene_name = name;
+        self.replace_world(world);
+        Ok(Vec::new())
+    }
+
+    fn step(&mut self) {
+        let t = Instant::now();
+        self.world.step();
+        self.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
+    }
+}
+
+/// Hosts a world until killed (or `max_frames`).
+pub fn run(opts: HostOptions) -> Result<()> {
+    let keys = WorldKeys::new(&opts.world).map_err(|e| anyhow!(e))?;
+    let text = std::fs::read_to_string(&opts.scene)
+        .with_context(|| format!("cannot read scene {}", opts.scene.display()))?;
+    let mut host = Hosted::load(
+        text,
+        opts.scene.clone(),
+        opts.overrides.clone(),
+        opts.keyframe_interval,
+    )?;
+    host.paused = opts.paused;
+
+    let session = opts.network.open()?;
+    let z = |e: zenoh::Error| anyhow!("zenoh: {e}");
+    let frames = session
+        .declare_publisher(&keys.frame)
+        .congestion_control(CongestionControl::Drop)
+        .wait()
+        .map_err(z)?;
+    let snapshots = session
+        .declare_publisher(&keys.snapshot)
+        .wait()
+        .map_err(z)?;
+    let events = session.declare_publisher(&keys.event).wait().map_err(z)?;
+    let commands = session
+        .declare_subscriber(&keys.cmd)
+        .with(zenoh::handlers::FifoChannel::new(16 * 1024))
+        .wait()
+        .map_err(z)?;
+    let requests = session
+        .declare_queryable(&keys.rpc)
+        .with(zenoh::handlers::FifoChannel::new(16 * 1024))
+        .wait()
+        .map_err(z)?;
+    let snapshot_queries = session
+        .declare_queryable(&keys.snapshot)
+        .wait()
+        .map_err(z)?;
+    let state_queries = session.declare_queryable(&keys.state).wait().map_err(z)?;
+    let _alive = session
+        .liveliness()
+        .declare_token(&keys.alive)
+        .wait()
+        .map_err(z)?;
+    tracing::info!(
+        world = %opts.world,
+        scene = %opts.scene.display(),
+        mode = opts.network.mode.name(),
+        listen = ?opts.network.listen,
+        connect = ?opts.network.connect,
+        paused = host.paused,
+        "serving"
+    );
+
+    // Real-time frames are dropped rather than queued when the network is congested, so a
+    // slow subscriber never holds the clock back; frames stepped on request (paused, as in
+    // a replay) wait for the network instead, so none is lost.
+    let mut publish = |h: &mut Hosted| {
+        if h.refresh_snapshot() {
+            if let Err(e) = snapshots.put(h.snapshot.clone()).wait() {
+                tracing::warn!("publishing the snapshot failed: {e}");
+            }
+        }
+        let bytes = h.encode_frame();
+        let sent = if h.paused {
+            session
+                .put(&keys.frame, bytes)
+                .congestion_control(CongestionControl::Block)
+                .wait()
+        } else {
+            frames.put(bytes).wait()
+        };
+        if let Err(e) = sent {
+            tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
+        }
+    };
+    // Frame 0: the state before the first step.
+    publish(&mut host);
+
+    let mut dt_ns = (host.world.config.dt * 1e9).round() as u64;
+    let mut anchor = Instant::now();
+    let mut due: u64 = 1; // steps since the anchor, the next one included
+    loop {
+        // Snapshot and state queries are answered at once.
+        while let Ok(Some(query)) = snapshot_queries.try_recv() {
+            host.refresh_snapshot();
+            if let Err(e) = query
+                .reply(query.key_expr().clone(), host.snapshot.clone())
+                .wait()
+            {
+                tracing::debug!("snapshot reply failed: {e}");
+            }
+        }
+        while let Ok(Some(query)) = state_queries.try_recv() {
+            let state = host.encoder.resync_frame().expect("frame 0 was published");
+            if let Err(e) = query.reply(query.key_expr().clone(), state).wait() {
+                tracing::debug!("state reply failed: {e}");
+            }
+        }
+
+        // The frame boundary: every command that arrived, in order, up to a bound.
+        let was_paused = host.paused;
+        let mut handled = 0;
+        while handled < MAX_COMMANDS_PER_FRAME {
+            let (payload, query) = if let Ok(Some(sample)) = commands.try_recv() {
+                (sample.payload().to_bytes().into_owned(), None)
+            } else if let Ok(Some(query)) = requests.try_recv() {
+                (
+                    query
+                        .payload()
+                        .map(|p| p.to_bytes().into_owned())
+                        .unwrap_or_default(),
+                    Some(query),
+                )
+            } else {
+                break;
+            };
+            handled += 1;
+            let parsed = Command::parse(&payload);
+            let reply = match &parsed {
+                Ok(command) => host.handle(command, &mut publish),
+                Err(error) => Reply {
+                    ok: false,
+                    frame: host.world.frame(),
+                    ids: Vec::new(),
+                    error: Some(error.clone()),
+                },
+            };
+            if !reply.ok {
+                tracing::warn!(
+                    frame = reply.frame,
+                    "command refused: {}",
+                    reply.error.as_deref().unwrap_or("")
+                );
+            }
+            let event = Event {
+                frame: reply.frame,
+                ok: reply.ok,
+                command: parsed.ok(),
+                ids: reply.ids.clone(),
+                error: reply.error.clone(),
+            };
+            let _ = events
+                .put(serde_json::to_vec(&event).expect("events serialise"))
+                .wait();
+            if let Some(query) = query {
+                let body = serde_json::to_vec(&reply).expect("replies serialise");
+                if let Err(e) = query.reply(query.key_expr().clone(), body).wait() {
+                    tracing::debug!("reply failed: {e}");
+                }
+            }
+        }
+        let new_dt = (host.world.config.dt * 1e9).round() as u64;
+        if new_dt != dt_ns || (was_paused && !host.paused) {
+            // The clock restarts from now at the new rate.
+            dt_ns = new_dt;
+            anchor = Instant::now();
+            due = 1;
+        }
+
+        if opts.max_frames.is_some_and(|m| host.world.frame() >= m) {
+            tracing::info!(
+                frame = host.world.frame(),
+                overruns = host.overruns,
+                "stopping after the last frame"
+            );
+            return Ok(());
+        }
+
+        let deadline = anchor + Duration::from_nanos(due.saturating_mul(dt_ns));
+        let now = Instant::now();
+        if now < deadline {
+            std::thread::sleep((deadline - now).min(Duration::from_millis(20)));
+            continue;
+        }
+        if host.paused {
+            anchor = Instant::now();
+            due = 1;
+            continue;
+        }
+        let late_steps = ((now - deadline).as_nanos() / dt_ns.max(1) as u128) as u64;
+        if late_steps >= 1 {
+            host.overruns = host.overruns.saturating_add(1);
+        }
+        if late_steps > MAX_CATCH_UP {
+            tracing::warn!(
+                late_steps,
+                frame = host.world.frame(),
+                "the world cannot keep real time; the clock re-anchors"
+            );
+            host.overruns = host
+                .overruns
+                .saturating_add(late_steps.min(u32::MAX as u64) as u32);
+            anchor = now;
+            due = 0;
+        }
+        host.step();
+        publish(&mut host);
+        due += 1;
+    }
+}
+
+/// Runs a bare zenoh router: where servers and clients on several hosts meet.
+pub fn run_router(network: &Network) -> Result<()> {
+    let _session = network.open()?;
+    tracing::info!(listen = ?network.listen, connect = ?network.connect, "router up");
+    loop {
+        std::thread::sleep(Duration::from_secs(3600));
+    }
+}

@@ -1,0 +1,655 @@
+//! End to end over zenoh on loopback: real server processes, the `ricochet` command-line
+//! client, the typed Rust client and the Python client. Every wait is bounded.
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command as Process, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use ricochet_protocol::client::{Client, Mode, Network};
+use ricochet_protocol::command::{Action, Command, Direction, ServerCommand};
+use ricochet_protocol::dump::read_dump;
+use ricochet_protocol::frame::{FrameDecoder, POS_QUANTUM};
+
+const TIMEOUT: Duration = Duration::from_secs(10);
+
+fn target_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test binary path");
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps")
+        .to_path_buf()
+}
+
+fn bin(name: &str) -> PathBuf {
+    let p = target_dir().join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        p.exists(),
+        "{} is missing: run the tests with `cargo test --workspace`",
+        p.display()
+    );
+    p
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn scene(name: &str) -> String {
+    root()
+        .join("assets/scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ricochet-network-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+fn free_endpoint() -> String {
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
+}
+
+/// A child process killed when dropped.
+struct Running(Child);
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A server hosting `world` from `scene_name`, listening on a fresh endpoint.
+struct Server {
+    endpoint: String,
+    world: String,
+    _process: Running,
+}
+
+impl Server {
+    fn start(scene_name: &str, world: &str, extra: &[&str]) -> Server {
+        let endpoint = free_endpoint();
+        let child = Process::new(bin("ricochet-server"))
+            .args([
+                "run",
+                "--scene",
+                &scene(scene_name),
+                "--world",
+                world,
+                "--listen",
+                &endpoint,
+            ])
+            .args(extra)
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("ricochet-server starts");
+        let server = Server {
+            endpoint,
+            world: world.to_string(),
+            _process: Running(child),
+        };
+        server.wait_up();
+        server
+    }
+
+    fn network(&self) -> Network {
+        Network::client(Mode::Peer, vec![self.endpoint.clone()])
+    }
+
+    fn client(&self) -> Client {
+        Client::open(&self.network(), &self.world).expect("client session")
+    }
+
+    /// Waits until the server answers a request (bounded).
+    fn wait_up(&self) {
+        let client = self.client();
+        let began = Instant::now();
+        while began.elapsed() < TIMEOUT * 3 {
+            // `deselect` changes nothing but answers.
+            if client
+                .request(
+                    &Command::World(Action::Deselect),
+                    Duration::from_millis(500),
+                )
+                .is_ok()
+            {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!(
+            "server of world {} on {} never answered",
+            self.world, self.endpoint
+        );
+    }
+
+    /// Runs the `ricochet` client against this server.
+    fn cli(&self, args: &[&str]) -> Output {
+        Process::new(bin("ricochet"))
+            .args(["--world", &self.world, "--connect", &self.endpoint])
+            .args(args)
+            .env("RUST_LOG", "warn")
+            .output()
+            .expect("ricochet starts")
+    }
+}
+
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn request(client: &Client, command: Command) -> ricochet_protocol::command::Reply {
+    client.request(&command, TIMEOUT).expect("a reply")
+}
+
+fn resume(client: &Client) {
+    assert!(request(client, Command::Server(ServerCommand::Resume)).ok);
+}
+
+/// One subscription to a world's frames, decoded as they come.
+struct Follower {
+    stream: ricochet_protocol::client::FrameStream,
+    decoder: FrameDecoder,
+}
+
+impl Follower {
+    fn new(client: &Client) -> Follower {
+        let (stream, decoder) = client.join(TIMEOUT).expect("join the world");
+        Follower { stream, decoder }
+    }
+
+    /// Decodes frames until `until` says stop (bounded by `limit`).
+    fn until(
+        &mut self,
+        limit: Duration,
+        mut until: impl FnMut(&FrameDecoder) -> bool,
+    ) -> &FrameDecoder {
+        let began = Instant::now();
+        while began.elapsed() < limit {
+            if let Ok(Some(sample)) = self.stream.recv_timeout(Duration::from_millis(100)) {
+                if self.decoder.apply(&sample.payload().to_bytes()).is_ok() && until(&self.decoder)
+                {
+                    return &self.decoder;
+                }
+            }
+        }
+        let d = &self.decoder;
+        panic!(
+            "condition not met within {limit:?} (frame {}, synced {})",
+            d.frame, d.synced
+        );
+    }
+}
+
+/// Decodes frames from a new subscription until `until` says stop (bounded by `limit`).
+fn follow(
+    client: &Client,
+    limit: Duration,
+    until: impl FnMut(&FrameDecoder) -> bool,
+) -> FrameDecoder {
+    Follower::new(client).until(limit, until).clone()
+}
+
+#[test]
+fn the_hero_moves_while_a_direction_is_held_and_is_not_pushed_after_release() {
+    let server = Server::start("impulse.toml", "hero", &[]);
+    let client = server.client();
+    resume(&client);
+    let mut frames = Follower::new(&client);
+    // Let the hero land.
+    frames.until(TIMEOUT, |d| {
+        d.frame > 150 && d.body("hero").is_some_and(|h| h.vel()[1].abs() < 1.0)
+    });
+    let x0 = frames.decoder.body("hero").unwrap().pos()[0];
+    let out = server.cli(&["send", "press", "dir=right"]);
+    assert!(ok(&out).contains("\"ok\":true"));
+    let held = frames.until(TIMEOUT, |d| d.body("hero").unwrap().vel()[0] > 10.0);
+    assert!(held.body("hero").unwrap().pos()[0] > x0);
+    let out = ok(&server.cli(&["send", "{\"do\":\"release\",\"dir\":\"right\"}"]));
+    let released: ricochet_protocol::command::Reply = serde_json::from_str(out.trim()).unwrap();
+    // After the frame the release took effect in, friction (or the platform it runs into)
+    // slows the hero; nothing pushes it on.
+    let mut vx = Vec::new();
+    frames.until(TIMEOUT, |d| {
+        if d.frame > released.frame {
+            vx.push(d.body("hero").unwrap().vel()[0]);
+        }
+        vx.len() > 40
+    });
+    assert!(
+        vx[vx.len() - 1] < vx[0],
+        "not slowing down after release: {vx:?}"
+    );
+    assert!(
+        vx.windows(2).all(|w| w[1] <= w[0] + 1e-9 || w[0] <= 0.0),
+        "pushed after release: {vx:?}"
+    );
+}
+
+#[test]
+fn spawned_minions_appear_with_the_returned_ids() {
+    let server = Server::start("impulse.toml", "spawn", &[]);
+    let client = server.client();
+    resume(&client);
+    let reply = request(
+        &client,
+        Command::World(Action::SpawnMinion {
+            at: [100.0, 60.0],
+            shape: None,
+        }),
+    );
+    assert!(reply.ok, "{reply:?}");
+    assert_eq!(reply.ids.len(), 1);
+    let id = reply.ids[0].clone();
+    let seen = follow(&client, TIMEOUT, |d| d.body(&id).is_some());
+    let m = seen.body(&id).unwrap();
+    assert!(m.circle);
+    assert!((m.pos()[1] - 60.0).abs() < 0.01, "spawned at {:?}", m.pos());
+    // The command-line client gets ids too.
+    let out = ok(&server.cli(&["send", "spawn_dumb_minion", "at=[90,90]"]));
+    let reply: ricochet_protocol::command::Reply = serde_json::from_str(out.trim()).unwrap();
+    let dumb = reply.ids[0].clone();
+    follow(&client, TIMEOUT, |d| d.body(&dumb).is_some());
+}
+
+#[test]
+fn an_emitter_produces_particles_that_expire() {
+    let server = Server::start("impulse.toml", "emit", &[]);
+    let client = server.client();
+    resume(&client);
+    let reply = request(
+        &client,
+        Command::World(Action::StartEmitter {
+            preset: "fire".into(),
+            count: 150,
+            at: [100.0, 60.0],
+        }),
+    );
+    assert!(reply.ok);
+    let burning = follow(&client, TIMEOUT, |d| d.particles.len() >= 100);
+    let p = &burning.particles[0];
+    let c = p.color_at(burning.frame);
+    assert!(c[0] >= 1.0 - 0.02 && c[1] < 0.6, "fire is red: {c:?}");
+    // Fire lives at most 230 updates: all gone within 5 s at 60 Hz.
+    follow(&client, Duration::from_secs(15), |d| {
+        d.particles.is_empty() && d.emitters.is_empty()
+    });
+}
+
+#[test]
+fn a_late_joiner_gets_the_statics_from_the_snapshot() {
+    let server = Server::start("emitters.toml", "late", &[]);
+    let client = server.client();
+    resume(&client);
+    std::thread::sleep(Duration::from_millis(500));
+    // A new session, joining after the statics were published.
+    let late = server.client();
+    let mut decoder = FrameDecoder::new();
+    decoder.apply(&late.snapshot(TIMEOUT).unwrap()).unwrap();
+    // Floor 9 + ceiling 9 + walls 16 + row platforms 8.
+    assert_eq!(decoder.statics.len(), 42);
+    let floor = decoder.body("floor/0").unwrap();
+    assert_eq!(floor.pos(), [-15.0, 2.0]);
+    assert_eq!(floor.size, [30.0, 3.75]);
+    assert!(decoder.bodies.is_empty(), "the snapshot holds statics only");
+    // The dynamic state comes from the state query, before any key frame.
+    decoder.apply(&late.state(TIMEOUT).unwrap()).unwrap();
+    assert!(decoder.synced && decoder.body("hero").is_some());
+    // Statics are never in frames; the deltas that follow apply on top of the state.
+    let d = follow(&late, TIMEOUT, |d| d.frame > decoder.frame + 5);
+    assert!(d.bodies.iter().all(|b| !b.id.starts_with("floor")));
+}
+
+#[test]
+fn malformed_commands_get_error_replies_and_the_server_keeps_stepping() {
+    let server = Server::start("emitters.toml", "garbage", &[]);
+    let client = server.client();
+    resume(&client);
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (b"\xff\xfe not json".to_vec(), "not JSON"),
+        (br#"{"do":"teleport"}"#.to_vec(), "unknown command"),
+        (br#"{"do":"fire_dye_pack","at":[1e400,0]}"#.to_vec(), "at"),
+        (
+            br#"{"do":"fire_dye_pack","at":["a",0]}"#.to_vec(),
+            "fire_dye_pack",
+        ),
+        (br#"{"do":"spawn_minion","at":[1e300,0]}"#.to_vec(), "at"),
+        (br#"{"do":"set","name":"dt","value":-1}"#.to_vec(), "dt"),
+        (
+            br#"{"do":"set","name":"gravity","value":null}"#.to_vec(),
+            "value",
+        ),
+        (br#"{"do":"clear","group":"nobody"}"#.to_vec(), "nobody"),
+        (
+            br#"{"do":"load","path":"/nonexistent.toml"}"#.to_vec(),
+            "cannot read",
+        ),
+        (
+            br#"{"do":"load","text":"[[body]]\nshape = \"hexagon\""}"#.to_vec(),
+            ":2: shape",
+        ),
+        (Vec::new(), "not JSON"),
+    ];
+    for (bytes, needle) in cases {
+        let reply = client.request_raw(bytes.clone(), TIMEOUT).expect("a reply");
+        assert!(
+            !reply.ok,
+            "{:?} was accepted",
+            String::from_utf8_lossy(&bytes)
+        );
+        let error = reply.error.unwrap();
+        assert!(
+            error.contains(needle),
+            "{:?}: `{error}` should mention {needle}",
+            String::from_utf8_lossy(&bytes)
+        );
+    }
+    // A flood of garbage, fire and forget.
+    for i in 0..3000 {
+        client
+            .send_raw(format!("garbage {i}").into_bytes())
+            .unwrap();
+    }
+    let before = follow(&client, TIMEOUT, |d| d.synced).frame;
+    let after = follow(&client, TIMEOUT, |d| d.frame > before + 60);
+    assert!(after.body("hero").is_some());
+    assert!(
+        request(
+            &client,
+            Command::World(Action::Press {
+                dir: Direction::Left
+            })
+        )
+        .ok,
+        "still serving"
+    );
+}
+
+#[test]
+fn worlds_are_listed_and_a_script_plays() {
+    let server = Server::start("impulse.toml", "listed", &[]);
+    let out = ok(&server.cli(&["worlds"]));
+    assert!(out.lines().any(|l| l == "listed"), "{out}");
+    resume(&server.client());
+    let script = tmp("short.ricochet");
+    std::fs::write(&script, "# a short script\n@5 spawn_minion at=[100,60]\n+0.1 fire_dye_pack at=[150,90]\n@20 {\"do\": \"agitate\"}\n").unwrap();
+    let out = ok(&server.cli(&["script", script.to_str().unwrap()]));
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines.len(), 3, "{out}");
+    assert!(lines.iter().all(|l| l.contains("\"ok\":true")), "{out}");
+    assert!(lines[0].contains("minion-"));
+    // A script line that is not a command is refused before anything is sent.
+    std::fs::write(&script, "@5 teleport\n").unwrap();
+    let out = server.cli(&["script", script.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("short.ricochet:1"));
+}
+
+/// Replays `log` with the command-line client and returns the decoded bodies and
+/// particles of each frame it produces (the step's wall-time figures left out).
+fn replayed_frames(server: &Server, client: &Client, log: &Path, until: u64) -> Vec<String> {
+    let stream = client.frames().unwrap();
+    ok(&server.cli(&[
+        "replay",
+        log.to_str().unwrap(),
+        "--until",
+        &until.to_string(),
+    ]));
+    let mut decoder = FrameDecoder::new();
+    let mut frames = Vec::new();
+    // Frames from before the replay's reset may still be queued: collect from frame 0 on.
+    let mut started = false;
+    let began = Instant::now();
+    while began.elapsed() < TIMEOUT && !(started && decoder.frame >= until) {
+        if let Ok(Some(sample)) = stream.recv_timeout(Duration::from_millis(100)) {
+            if decoder.apply(&sample.payload().to_bytes()).is_err() {
+                continue;
+            }
+            if decoder.frame == 0 {
+                started = true;
+                frames.clear();
+            }
+            if started {
+                let bodies: Vec<_> = decoder
+                    .bodies
+                    .iter()
+                    .map(|b| (b.id.clone(), b.qpos, b.qvel, b.collided))
+                    .collect();
+                let particles: Vec<_> = decoder.particles.iter().map(|p| (p.id, p.qpos)).collect();
+                frames.push(format!("{} {:?} {:?}", decoder.frame, bodies, particles));
+            }
+        }
+    }
+    frames
+}
+
+#[test]
+fn a_recorded_input_log_replays_to_the_same_frames() {
+    let server = Server::start("emitters.toml", "replay", &[]);
+    let client = server.client();
+    resume(&client);
+    let log = tmp("recorded.jsonl");
+    let recorder = Process::new(bin("ricochet"))
+        .args([
+            "--world",
+            "replay",
+            "--connect",
+            &server.endpoint,
+            "record",
+            log.to_str().unwrap(),
+            "--seconds",
+            "4",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut recorder = Running(recorder);
+    std::thread::sleep(Duration::from_millis(1000));
+    for command in [
+        Action::Press {
+            dir: Direction::Right,
+        },
+        Action::FireDyePack { at: [150.0, 90.0] },
+        Action::SpawnDumbMinion { at: [100.0, 90.0] },
+        Action::SpawnParticles {
+            preset: "fire".into(),
+            at: [60.0, 60.0],
+            count: 30,
+        },
+        Action::Release {
+            dir: Direction::Right,
+        },
+        Action::Agitate { strength: None },
+    ] {
+        assert!(request(&client, Command::World(command)).ok);
+        std::thread::sleep(Duration::from_millis(150));
+    }
+    // A refused command is not part of the log.
+    assert!(
+        !request(
+            &client,
+            Command::World(Action::Clear {
+                group: "nobody".into()
+            })
+        )
+        .ok
+    );
+    // The recorder stops by itself after its 4 seconds.
+    let began = Instant::now();
+    while recorder.0.try_wait().unwrap().is_none() {
+        assert!(began.elapsed() < TIMEOUT, "the recorder did not stop");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let text = std::fs::read_to_string(&log).unwrap();
+    let entries = ricochet_protocol::command::parse_input_log(&text).unwrap();
+    assert_eq!(entries.len(), 6, "{text}");
+    let last = entries.last().unwrap().frame;
+
+    let until = last + 90;
+    let first = replayed_frames(&server, &client, &log, until);
+    let second = replayed_frames(&server, &client, &log, until);
+    assert_eq!(
+        first.len() as u64,
+        until + 1,
+        "frames 0 to {until} of the replay"
+    );
+    assert_eq!(first, second, "two replays of the same log differ");
+
+    // The headless run of the same scene and log agrees with the served frames.
+    let dump = tmp("replay-dump.jsonl");
+    let out = Process::new(bin("ricochet-server"))
+        .args([
+            "simulate",
+            "--scene",
+            &scene("emitters.toml"),
+            "--steps",
+            &until.to_string(),
+            "--inputs",
+            log.to_str().unwrap(),
+            "--dump",
+            dump.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    ok(&out);
+    let frames = read_dump(&std::fs::read_to_string(&dump).unwrap()).unwrap();
+    let served_last = first.last().unwrap();
+    let dumped = &frames[until as usize];
+    for b in dumped
+        .bodies
+        .iter()
+        .filter(|b| b.id == "hero" || b.id.starts_with("dumb_minion"))
+    {
+        let qx = (b.x / POS_QUANTUM).round() as i64;
+        assert!(
+            served_last.contains(&format!("(\"{}\", [{qx}, ", b.id)),
+            "{} at x {} not in the served frame {until}",
+            b.id,
+            b.x
+        );
+    }
+}
+
+#[test]
+fn a_server_and_a_client_meet_through_a_router() {
+    let router_endpoint = free_endpoint();
+    let _router = Running(
+        Process::new(bin("ricochet-server"))
+            .args(["router", "--listen", &router_endpoint])
+            .env("RUST_LOG", "warn")
+            .spawn()
+            .unwrap(),
+    );
+    let _server = Running(
+        Process::new(bin("ricochet-server"))
+            .args([
+                "run",
+                "--scene",
+                &scene("impulse.toml"),
+                "--world",
+                "routed",
+                "--mode",
+                "client",
+                "--connect",
+                &router_endpoint,
+            ])
+            .env("RUST_LOG", "warn")
+            .spawn()
+            .unwrap(),
+    );
+    let network = Network::client(Mode::Client, vec![router_endpoint.clone()]);
+    let client = Client::open(&network, "routed").unwrap();
+    let began = Instant::now();
+    let reply = loop {
+        if let Ok(r) = client.request(
+            &Command::World(Action::SpawnMinion {
+                at: [100.0, 60.0],
+                shape: None,
+            }),
+            Duration::from_millis(500),
+        ) {
+            break r;
+        }
+        assert!(began.elapsed() < TIMEOUT * 3, "no reply through the router");
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    assert!(reply.ok);
+    let id = reply.ids[0].clone();
+    follow(&client, TIMEOUT, |d| d.body(&id).is_some());
+    let out = Process::new(bin("ricochet"))
+        .args(["--mode", "client", "--connect", &router_endpoint, "worlds"])
+        .output()
+        .unwrap();
+    assert!(ok(&out).lines().any(|l| l == "routed"));
+}
+
+#[test]
+fn the_python_client_sends_commands_and_decodes_frames() {
+    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    let probe = Process::new(&python)
+        .args(["-c", "import zenoh"])
+        .output()
+        .expect("python3 runs");
+    assert!(
+        probe.status.success(),
+        "the Python client needs `pip install eclipse-zenoh==1.10.2` (.ci/run installs it)"
+    );
+    let server = Server::start("emitters.toml", "python", &[]);
+    resume(&server.client());
+    let script = root().join("assets/scripts/ricochet_client.py");
+    let py = |args: &[&str]| {
+        Process::new(&python)
+            .arg(&script)
+            .args(["--world", "python", "--connect", &server.endpoint])
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let out = ok(&py(&["send", "spawn_minion", "at=[100,60]"]));
+    let reply: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    let id = reply["ids"][0].as_str().unwrap().to_string();
+    let refused = py(&["send", "--raw", "not json"]);
+    assert_eq!(refused.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&refused.stdout).contains("not JSON"));
+    let out = ok(&py(&["watch", "--frames", "90"]));
+    let frames: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(frames.len(), 90);
+    let last = frames.last().unwrap();
+    assert_eq!(last["statics"], 42);
+    assert!(last["bodies"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|b| b["id"] == id.as_str()));
+    assert!(frames
+        .windows(2)
+        .all(|w| w[1]["frame"].as_u64().unwrap() == w[0]["frame"].as_u64().unwrap() + 1));
+    // The scene's emitter: particles with their colours.
+    let particles: usize = frames
+        .iter()
+        .map(|f| f["particles"].as_array().unwrap().len())
+        .max()
+        .unwrap();
+    assert!(particles > 0 || frames[0]["frame"].as_u64().unwrap() > 400);
+}
