@@ -133,9 +133,12 @@ enum Command {
         #[arg(long)]
         inputs: Option<PathBuf>,
         /// Encode every frame as the server would send it and report the bytes per frame,
-        /// per dynamic body and per particle (key frames every 60 frames).
+        /// per dynamic body and per particle.
         #[arg(long)]
         wire_stats: bool,
+        /// With --wire-stats: a key frame every this many frames, as `run` would send.
+        #[arg(long, default_value_t = 60)]
+        keyframe_interval: u64,
     },
 }
 
@@ -177,6 +180,7 @@ fn main() -> Result<()> {
             dump,
             inputs,
             wire_stats,
+            keyframe_interval,
         } => simulate(
             &scene,
             steps,
@@ -184,7 +188,7 @@ fn main() -> Result<()> {
             set,
             dump.as_deref(),
             inputs.as_deref(),
-            wire_stats,
+            wire_stats.then_some(keyframe_interval),
         ),
     }
 }
@@ -202,7 +206,7 @@ fn simulate(
     mut overrides: Vec<String>,
     dump_path: Option<&Path>,
     inputs: Option<&Path>,
-    wire_stats: bool,
+    wire_stats: Option<u64>,
 ) -> Result<()> {
     if let Some(seed) = seed {
         overrides.push(format!("seed={seed}"));
@@ -231,7 +235,7 @@ fn simulate(
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} eta {eta}")
             .expect("the template is valid"),
     );
-    let mut wire = wire_stats.then(|| WireStats::new(&world));
+    let mut wire = wire_stats.map(|interval| WireStats::new(&world, interval));
     let mut next_input = inputs.iter().peekable();
     let mut refused = 0u64;
     let started = Instant::now();
@@ -302,9 +306,9 @@ struct WireStats {
 }
 
 impl WireStats {
-    fn new(world: &World) -> Self {
+    fn new(world: &World, keyframe_interval: u64) -> Self {
         let mut w = WireStats {
-            encoder: FrameEncoder::new(60),
+            encoder: FrameEncoder::new(keyframe_interval),
             statics_bytes: wire::statics_snapshot(world).len(),
             frames: 0,
             bytes: 0,
