@@ -14,8 +14,11 @@ use rand_chacha::ChaCha8Rng;
 use crate::action::{Action, ActionError, ActionOutcome, MAX_PARTICLES_PER_ACTION};
 use crate::behavior::{self, Behavior};
 use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
+use crate::dynamics::broad_phase::{sweep_pairs, BroadPhase, SweepBuffers};
+use crate::dynamics::config::Solver;
 use crate::dynamics::config::WorldConfig;
-use crate::dynamics::integrate::integrate_bodies;
+use crate::dynamics::impulse::{self, ContactCache, ImpulseParams};
+use crate::dynamics::integrate::{integrate_bodies, integrate_positions, integrate_velocities};
 use crate::dynamics::relaxation::{self, RelaxationParams};
 use crate::geometry::{collide, Shape};
 use crate::particles::{Emitter, ParticleDef, Particles, PresetLibrary};
@@ -97,6 +100,11 @@ pub struct World {
     selected: Option<BodyKey>,
     stats: StepStats,
     statics_revision: u64,
+    // Scratch space of the broad phase and the impulse solver, kept between steps.
+    sweep: SweepBuffers,
+    pairs: Vec<(u32, u32)>,
+    sweep_out: Vec<(u32, u32)>,
+    contact_cache: ContactCache,
 }
 
 impl World {
@@ -118,6 +126,10 @@ impl World {
             selected: None,
             stats: StepStats::default(),
             statics_revision: 0,
+            sweep: SweepBuffers::default(),
+            pairs: Vec::new(),
+            sweep_out: Vec::new(),
+            contact_cache: ContactCache::default(),
         }
     }
 
@@ -330,31 +342,67 @@ impl World {
     // ---- stepping ------------------------------------------------------------------
 
     /// Advances the world by one fixed step.
+    ///
+    /// With the chapter's relaxation and one sub-step this is the chapter's order: move
+    /// bodies, move particles, then every interaction in declaration order. With sub-steps
+    /// or the impulse solver, the rigid bodies take their sub-steps first (move and
+    /// resolve), then the particles move and meet the shapes where they ended.
     pub fn step(&mut self) {
         let mut stats = StepStats::default();
         for b in &mut self.bodies {
             b.collided = false;
         }
-
-        // Move every body: behaviours, then integration.
         self.run_behaviors();
-        integrate_bodies(&mut self.bodies, &self.config);
-        self.explode_dye_packs_on_hero();
+        let dt = self.config.dt;
+        let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
+        if chapter_order {
+            integrate_bodies(&mut self.bodies, &self.config, dt);
+            self.explode_dye_packs_on_hero();
+            self.move_particles();
+            self.run_interactions(&mut stats, true, true, dt);
+        } else {
+            let n = self.config.substeps.max(1);
+            let h = dt / n as f64;
+            for _ in 0..n {
+                match self.config.solver {
+                    Solver::Relaxation => {
+                        integrate_bodies(&mut self.bodies, &self.config, h);
+                        self.run_interactions(&mut stats, true, false, h);
+                    }
+                    Solver::Impulses => {
+                        integrate_velocities(&mut self.bodies, &self.config, h);
+                        self.solve_impulses(&mut stats, h);
+                        integrate_positions(&mut self.bodies, h);
+                    }
+                }
+            }
+            self.explode_dye_packs_on_hero();
+            self.move_particles();
+            self.run_interactions(&mut stats, false, true, dt);
+        }
+        stats.kinetic_energy = self.kinetic_energy();
+        self.stats = stats;
+        self.frame += 1;
+    }
 
-        // Move every particle, removing the expired, then emit.
+    /// Moves every particle, removing the expired, then emits.
+    fn move_particles(&mut self) {
         if !self.particles.is_empty() {
             self.particles.update(self.config.dt as f32);
         }
         self.run_emitters();
+    }
 
-        // The declared interactions, in order.
+    /// The declared interactions in order: the rigid ones by relaxation (if `rigid`), the
+    /// particle ones by projection (if `particles`).
+    fn run_interactions(&mut self, stats: &mut StepStats, rigid: bool, particles: bool, dt: f64) {
         let params = RelaxationParams {
             iterations: self.config.relaxation_iterations,
             correction_rate: self.config.correction_rate,
         };
         for inter in &self.interactions {
             match (inter.a, inter.b) {
-                (Side::Group(a), Side::Group(b)) => {
+                (Side::Group(a), Side::Group(b)) if rigid => {
                     let (ga, gb) = (
                         &self.groups[a as usize].members,
                         &self.groups[b as usize].members,
@@ -362,16 +410,34 @@ impl World {
                     if ga.is_empty() || gb.is_empty() {
                         continue;
                     }
-                    let report = if inter.resolve {
-                        relaxation::relax(&mut self.bodies, ga, gb, params)
-                    } else {
+                    let report = if !inter.resolve {
                         relaxation::detect_only(&mut self.bodies, ga, gb)
+                    } else {
+                        match self.config.broad_phase {
+                            BroadPhase::AllPairs => {
+                                relaxation::relax(&mut self.bodies, ga, gb, params)
+                            }
+                            BroadPhase::Sweep => {
+                                sweep_pairs(
+                                    &self.bodies,
+                                    ga,
+                                    gb,
+                                    a == b,
+                                    dt,
+                                    &mut self.sweep,
+                                    &mut self.pairs,
+                                );
+                                relaxation::relax_pairs(&mut self.bodies, &self.pairs, params)
+                            }
+                        }
                     };
                     stats.contacts += report.contacts;
                     stats.relaxation_iterations += report.iterations as u64;
                     stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
                 }
-                (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g)) => {
+                (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g))
+                    if particles =>
+                {
                     if self.particles.is_empty() || !inter.resolve {
                         continue;
                     }
@@ -388,13 +454,67 @@ impl World {
                         };
                     }
                 }
-                (Side::Particles, Side::Particles) => {}
+                _ => {}
             }
         }
+    }
 
-        stats.kinetic_energy = self.kinetic_energy();
-        self.stats = stats;
-        self.frame += 1;
+    /// One sub-step of the impulse solver over the contacts of every rigid interaction.
+    fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
+        let mut all = std::mem::take(&mut self.pairs);
+        all.clear();
+        for inter in &self.interactions {
+            let (Side::Group(a), Side::Group(b)) = (inter.a, inter.b) else {
+                continue;
+            };
+            let (ga, gb) = (
+                &self.groups[a as usize].members,
+                &self.groups[b as usize].members,
+            );
+            if ga.is_empty() || gb.is_empty() {
+                continue;
+            }
+            if !inter.resolve {
+                let report = relaxation::detect_only(&mut self.bodies, ga, gb);
+                stats.contacts += report.contacts;
+                continue;
+            }
+            match self.config.broad_phase {
+                BroadPhase::AllPairs => {
+                    for &i in ga {
+                        for &j in gb {
+                            if i != j {
+                                all.push((i, j));
+                            }
+                        }
+                    }
+                }
+                BroadPhase::Sweep => {
+                    sweep_pairs(
+                        &self.bodies,
+                        ga,
+                        gb,
+                        a == b,
+                        h,
+                        &mut self.sweep,
+                        &mut self.sweep_out,
+                    );
+                    all.extend_from_slice(&self.sweep_out);
+                }
+            }
+        }
+        let params = ImpulseParams {
+            iterations: self.config.impulse_iterations,
+            warm_starting: self.config.warm_starting,
+            baumgarte: self.config.baumgarte,
+            slop: self.config.slop,
+            dt: h,
+        };
+        let report = impulse::solve(&mut self.bodies, &mut all, params, &mut self.contact_cache);
+        stats.contacts += report.contacts;
+        stats.relaxation_iterations += self.config.impulse_iterations as u64;
+        stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+        self.pairs = all;
     }
 
     /// Runs `n` steps.

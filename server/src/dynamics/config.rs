@@ -25,6 +25,29 @@ impl Integrator {
     }
 }
 
+/// How rigid collisions are resolved.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Solver {
+    /// The chapter's relaxation: each interaction in turn runs up to
+    /// `relaxation_iterations` passes of projection, friction and impulse.
+    #[default]
+    Relaxation,
+    /// Sequential impulses over the contacts of every interaction at once, with
+    /// accumulated, clamped impulses, Coulomb friction, warm starting from the previous
+    /// step and a Baumgarte position bias (in the manner of Box2D's contact solver).
+    Impulses,
+}
+
+impl Solver {
+    pub fn name(self) -> &'static str {
+        match self {
+            Solver::Relaxation => "relaxation",
+            Solver::Impulses => "impulses",
+        }
+    }
+}
+
 /// The chapter's positional correction rate, used when a value outside (0, 1) is given.
 pub const DEFAULT_CORRECTION_RATE: f64 = 0.8;
 /// The chapter's relaxation count.
@@ -53,6 +76,21 @@ pub struct WorldConfig {
     pub mass_scaled_acceleration: bool,
     /// The world's extent, lower-left and upper-right corners: the viewer's camera.
     pub bounds: [DVec2; 2],
+    /// How rigid collisions are resolved.
+    pub solver: Solver,
+    /// How interactions find their candidate pairs.
+    pub broad_phase: super::broad_phase::BroadPhase,
+    /// Rigid sub-steps per frame, each of `dt / substeps` (particles step once a frame).
+    pub substeps: u32,
+    /// Velocity iterations of the impulse solver per sub-step.
+    pub impulse_iterations: u32,
+    /// Start the impulse solver from the previous step's impulses.
+    pub warm_starting: bool,
+    /// Share of the penetration (beyond `slop`) the impulse solver removes per second per
+    /// `1 / dt` (Baumgarte factor), in [0, 1].
+    pub baumgarte: f64,
+    /// Penetration the impulse solver leaves alone, relative to the smaller body's size.
+    pub slop: f64,
 }
 
 impl Default for WorldConfig {
@@ -67,6 +105,13 @@ impl Default for WorldConfig {
             integrator: Integrator::Symplectic,
             mass_scaled_acceleration: true,
             bounds: [DVec2::ZERO, DVec2::new(200.0, 112.5)],
+            solver: Solver::Relaxation,
+            broad_phase: super::broad_phase::BroadPhase::Sweep,
+            substeps: 1,
+            impulse_iterations: 8,
+            warm_starting: true,
+            baumgarte: 0.2,
+            slop: 0.01,
         }
     }
 }
@@ -99,6 +144,13 @@ impl WorldConfig {
         "integrator",
         "mass_scaled_acceleration",
         "bounds",
+        "solver",
+        "broad_phase",
+        "substeps",
+        "impulse_iterations",
+        "warm_starting",
+        "baumgarte",
+        "slop",
     ];
 
     /// The chapter's setter: a rate outside (0, 1) becomes 0.8. Non-finite is refused.
@@ -152,6 +204,27 @@ impl WorldConfig {
         self.set_dt(self.dt)?;
         self.set_correction_rate(self.correction_rate)?;
         self.set_relaxation_iterations(self.relaxation_iterations as i64);
+        if !(1..=1000).contains(&self.substeps) {
+            return Err(invalid(
+                "substeps",
+                format!("{} must be 1 to 1000", self.substeps),
+            ));
+        }
+        if !(1..=10_000).contains(&self.impulse_iterations) {
+            return Err(invalid(
+                "impulse_iterations",
+                format!("{} must be 1 to 10000", self.impulse_iterations),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.baumgarte) {
+            return Err(invalid(
+                "baumgarte",
+                format!("{} must be in [0, 1]", self.baumgarte),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.slop) {
+            return Err(invalid("slop", format!("{} must be in [0, 1]", self.slop)));
+        }
         let [lo, hi] = self.bounds;
         if !(lo.is_finite() && hi.is_finite() && hi.x > lo.x && hi.y > lo.y) {
             return Err(invalid(
@@ -196,6 +269,13 @@ impl WorldConfig {
                 next.mass_scaled_acceleration = parsed.mass_scaled_acceleration
             }
             "bounds" => next.bounds = parsed.bounds,
+            "solver" => next.solver = parsed.solver,
+            "broad_phase" => next.broad_phase = parsed.broad_phase,
+            "substeps" => next.substeps = parsed.substeps,
+            "impulse_iterations" => next.impulse_iterations = parsed.impulse_iterations,
+            "warm_starting" => next.warm_starting = parsed.warm_starting,
+            "baumgarte" => next.baumgarte = parsed.baumgarte,
+            "slop" => next.slop = parsed.slop,
             _ => unreachable!("checked against NAMES"),
         }
         next.validate()?;

@@ -16,10 +16,9 @@ pub fn acceleration(body: &Body, config: &WorldConfig) -> DVec2 {
     }
 }
 
-/// Advances every dynamic body by one step of `config.dt`. Static bodies (mass 0) are
-/// never moved, whatever velocity they were given.
-pub fn integrate_bodies(bodies: &mut [Body], config: &WorldConfig) {
-    let dt = config.dt;
+/// Advances every dynamic body by a step of `dt` with the configured integrator. Static
+/// bodies (mass 0) are never moved, whatever velocity they were given.
+pub fn integrate_bodies(bodies: &mut [Body], config: &WorldConfig, dt: f64) {
     for body in bodies.iter_mut().filter(|b| !b.is_static()) {
         let a = acceleration(body, config);
         match config.integrator {
@@ -32,6 +31,20 @@ pub fn integrate_bodies(bodies: &mut [Body], config: &WorldConfig) {
                 body.vel += a * dt;
             }
         }
+    }
+}
+
+/// The first half of a semi-implicit step, for the impulse solver: `v += a dt`.
+pub fn integrate_velocities(bodies: &mut [Body], config: &WorldConfig, dt: f64) {
+    for body in bodies.iter_mut().filter(|b| !b.is_static()) {
+        body.vel += acceleration(body, config) * dt;
+    }
+}
+
+/// The second half: `p += v dt`.
+pub fn integrate_positions(bodies: &mut [Body], dt: f64) {
+    for body in bodies.iter_mut().filter(|b| !b.is_static()) {
+        body.pos += body.vel * dt;
     }
 }
 
@@ -70,7 +83,7 @@ mod tests {
         let mut bodies = vec![ball(0.5)];
         let (g, dt) = (config.gravity.y, config.dt);
         for n in 1..=120u32 {
-            integrate_bodies(&mut bodies, &config);
+            integrate_bodies(&mut bodies, &config, config.dt);
             let n = n as f64;
             let y = 100.0 + g * dt * dt * n * (n + 1.0) / 2.0;
             assert!(
@@ -93,7 +106,7 @@ mod tests {
         let mut bodies = vec![ball(1.0)];
         let (g, dt) = (config.gravity.y, config.dt);
         for n in 1..=60u32 {
-            integrate_bodies(&mut bodies, &config);
+            integrate_bodies(&mut bodies, &config, config.dt);
             let n = n as f64;
             let y = 100.0 + g * dt * dt * n * (n - 1.0) / 2.0;
             assert!((bodies[0].pos.y - y).abs() < 1e-9);
@@ -104,14 +117,14 @@ mod tests {
     fn mass_scaled_acceleration_halves_the_fall_of_a_mass_two_body() {
         let config = WorldConfig::default();
         let mut bodies = vec![ball(1.0), ball(0.5)];
-        integrate_bodies(&mut bodies, &config);
+        integrate_bodies(&mut bodies, &config, config.dt);
         assert!((bodies[1].vel.y * 2.0 - bodies[0].vel.y).abs() < 1e-12);
         let classical = WorldConfig {
             mass_scaled_acceleration: false,
             ..config
         };
         let mut bodies = vec![ball(1.0), ball(0.5)];
-        integrate_bodies(&mut bodies, &classical);
+        integrate_bodies(&mut bodies, &classical, classical.dt);
         assert_eq!(bodies[0].vel, bodies[1].vel);
     }
 
@@ -121,7 +134,7 @@ mod tests {
         let mut platform = ball(0.0);
         platform.vel = DVec2::new(3.0, 4.0);
         let mut bodies = vec![platform];
-        integrate_bodies(&mut bodies, &config);
+        integrate_bodies(&mut bodies, &config, config.dt);
         assert_eq!(bodies[0].pos, DVec2::new(0.0, 100.0));
     }
 }

@@ -1,9 +1,12 @@
 //! Rigid bodies, their movement and the relaxation solver.
 
 pub mod body;
+pub mod broad_phase;
 pub mod config;
+pub mod impulse;
 pub mod integrate;
 pub mod relaxation;
 
 pub use body::{Body, BodyDef, BodyKey, GroupId};
-pub use config::{Integrator, WorldConfig};
+pub use broad_phase::BroadPhase;
+pub use config::{Integrator, Solver, WorldConfig};

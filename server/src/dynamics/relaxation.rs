@@ -86,21 +86,43 @@ pub fn relax(
     group_b: &[u32],
     params: RelaxationParams,
 ) -> RelaxationReport {
+    relax_passes(bodies, params, || {
+        group_a
+            .iter()
+            .flat_map(|&i| group_b.iter().map(move |&j| (i, j)))
+    })
+}
+
+/// Runs one interaction's relaxation loop over candidate pairs from a broad phase (in the
+/// all-pairs order): the same passes as [`relax`], over fewer pairs.
+pub fn relax_pairs(
+    bodies: &mut [Body],
+    pairs: &[(u32, u32)],
+    params: RelaxationParams,
+) -> RelaxationReport {
+    relax_passes(bodies, params, || pairs.iter().copied())
+}
+
+/// The relaxation loop: up to `iterations` passes over `pairs()`, stopping after a pass
+/// that found no collision.
+fn relax_passes<I: Iterator<Item = (u32, u32)>>(
+    bodies: &mut [Body],
+    params: RelaxationParams,
+    pairs: impl Fn() -> I,
+) -> RelaxationReport {
     let mut report = RelaxationReport::default();
     let offset = params.relaxation_offset();
     for _ in 0..params.iterations.max(1) {
         report.iterations += 1;
         let mut any = false;
-        for &i in group_a {
-            for &j in group_b {
-                let (i, j) = (i as usize, j as usize);
-                if let Some(info) = detect(bodies, i, j) {
-                    any = true;
-                    report.contacts += 1;
-                    report.deepest = report.deepest.max(info.depth);
-                    let (a, b) = pair_mut(bodies, i, j);
-                    resolve_collision(a, b, &info, params.correction_rate, offset);
-                }
+        for (i, j) in pairs() {
+            let (i, j) = (i as usize, j as usize);
+            if let Some(info) = detect(bodies, i, j) {
+                any = true;
+                report.contacts += 1;
+                report.deepest = report.deepest.max(info.depth);
+                let (a, b) = pair_mut(bodies, i, j);
+                resolve_collision(a, b, &info, params.correction_rate, offset);
             }
         }
         if !any {

@@ -1,0 +1,314 @@
+//! The sequential-impulse contact solver (`solver = "impulses"`).
+//!
+//! Contacts of every resolving interaction are solved together: each velocity iteration
+//! visits every contact once and applies the normal impulse that brings the bodies'
+//! normal velocity to its target, accumulating it and clamping the sum at zero (contacts
+//! push, never pull), then a Coulomb friction impulse clamped by `friction x normal
+//! impulse`. The target is the restitution bounce for an approach faster than
+//! [`RESTITUTION_SPEED`], plus a Baumgarte bias that removes `baumgarte` of the
+//! penetration beyond the slop per step. Impulses are kept between steps (keyed by the
+//! pair of bodies) and applied first next step: warm starting, which lets stacks and
+//! pyramids settle in a few iterations. Positions move only by velocity, after the solve.
+//!
+//! Shapes do not rotate, so one contact per pair carries all of it.
+
+use std::collections::HashMap;
+
+use glam::DVec2;
+
+use super::body::{Body, BodyKey};
+use crate::geometry::collide;
+
+/// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
+pub const RESTITUTION_SPEED: f64 = 1.0;
+
+/// The solver's settings for one sub-step.
+#[derive(Clone, Copy, Debug)]
+pub struct ImpulseParams {
+    pub iterations: u32,
+    pub warm_starting: bool,
+    pub baumgarte: f64,
+    pub slop: f64,
+    pub dt: f64,
+}
+
+/// One contact, as the inner loop reads it.
+#[derive(Clone, Copy, Debug)]
+struct Contact {
+    a: u32,
+    b: u32,
+    normal: DVec2,
+    inv_a: f64,
+    inv_b: f64,
+    /// 1 / (inv_a + inv_b).
+    mass: f64,
+    friction: f64,
+    /// Normal velocity the contact drives toward.
+    target: f64,
+    normal_impulse: f64,
+    tangent_impulse: f64,
+}
+
+/// Impulses of the last step, for warm starting.
+#[derive(Clone, Debug, Default)]
+pub struct ContactCache {
+    impulses: HashMap<(BodyKey, BodyKey), (DVec2, f64, f64)>,
+}
+
+impl ContactCache {
+    pub fn clear(&mut self) {
+        self.impulses.clear();
+    }
+}
+
+/// What the solver did in one sub-step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ImpulseReport {
+    pub contacts: u64,
+    pub deepest: f64,
+}
+
+/// Solves the contacts among `pairs` (body indices; a pair listed in both orders counts
+/// once). Velocities change; positions do not.
+pub fn solve(
+    bodies: &mut [Body],
+    pairs: &mut Vec<(u32, u32)>,
+    params: ImpulseParams,
+    cache: &mut ContactCache,
+) -> ImpulseReport {
+    // One contact per unordered pair, in a deterministic order.
+    for p in pairs.iter_mut() {
+        if p.0 > p.1 {
+            *p = (p.1, p.0);
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+
+    let mut report = ImpulseReport::default();
+    let mut contacts = Vec::with_capacity(pairs.len());
+    let inv_dt = 1.0 / params.dt;
+    for &(i, j) in pairs.iter() {
+        let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
+        if a.inv_mass + b.inv_mass == 0.0 {
+            continue;
+        }
+        let Some(info) = collide(&a.shape, a.pos, &b.shape, b.pos) else {
+            continue;
+        };
+        report.contacts += 1;
+        report.deepest = report.deepest.max(info.depth);
+        let n = info.normal;
+        let approach = (b.vel - a.vel).dot(n);
+        let bounce = if approach < -RESTITUTION_SPEED {
+            -a.restitution.min(b.restitution) * approach
+        } else {
+            0.0
+        };
+        let size = a
+            .shape
+            .half_extents()
+            .min_element()
+            .min(b.shape.half_extents().min_element())
+            * 2.0;
+        let push_out = params.baumgarte * inv_dt * (info.depth - params.slop * size).max(0.0);
+        let mut c = Contact {
+            a: i,
+            b: j,
+            normal: n,
+            inv_a: a.inv_mass,
+            inv_b: b.inv_mass,
+            mass: 1.0 / (a.inv_mass + b.inv_mass),
+            friction: (a.friction * b.friction).sqrt(),
+            target: bounce.max(push_out),
+            normal_impulse: 0.0,
+            tangent_impulse: 0.0,
+        };
+        if params.warm_starting {
+            if let Some(&(old_n, jn, jt)) = cache.impulses.get(&(a.key, b.key)) {
+                if old_n.dot(n) > 0.99 {
+                    c.normal_impulse = jn;
+                    c.tangent_impulse = jt;
+                }
+            }
+        }
+        contacts.push(c);
+    }
+
+    for c in &contacts {
+        bodies[c.a as usize].collided = true;
+        bodies[c.b as usize].collided = true;
+        if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
+            let t = DVec2::new(-c.normal.y, c.normal.x);
+            apply(
+                bodies,
+                c,
+                c.normal * c.normal_impulse + t * c.tangent_impulse,
+            );
+        }
+    }
+
+    for _ in 0..params.iterations {
+        for c in contacts.iter_mut() {
+            let (va, vb) = (bodies[c.a as usize].vel, bodies[c.b as usize].vel);
+            let dv = vb - va;
+            // Normal: drive the normal velocity to its target, never pulling.
+            let vn = dv.dot(c.normal);
+            let lambda = c.mass * (c.target - vn);
+            let total = (c.normal_impulse + lambda).max(0.0);
+            let dn = total - c.normal_impulse;
+            c.normal_impulse = total;
+            // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
+            let t = DVec2::new(-c.normal.y, c.normal.x);
+            // The normal impulse does not change the tangential velocity.
+            let vt = dv.dot(t);
+            let limit = c.friction * c.normal_impulse;
+            let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
+            let dt_imp = total_t - c.tangent_impulse;
+            c.tangent_impulse = total_t;
+            let p = c.normal * dn + t * dt_imp;
+            let (a, b) = (c.a as usize, c.b as usize);
+            bodies[a].vel -= p * c.inv_a;
+            bodies[b].vel += p * c.inv_b;
+        }
+    }
+
+    cache.impulses.clear();
+    for c in &contacts {
+        let key = (bodies[c.a as usize].key, bodies[c.b as usize].key);
+        cache
+            .impulses
+            .insert(key, (c.normal, c.normal_impulse, c.tangent_impulse));
+    }
+    report
+}
+
+fn apply(bodies: &mut [Body], c: &Contact, impulse: DVec2) {
+    bodies[c.a as usize].vel -= impulse * c.inv_a;
+    bodies[c.b as usize].vel += impulse * c.inv_b;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::behavior::Behavior;
+    use crate::geometry::Shape;
+
+    fn body(key: u32, pos: DVec2, vel: DVec2, inv_mass: f64) -> Body {
+        Body {
+            pos,
+            vel,
+            shape: Shape::rect(1.0, 1.0),
+            inv_mass,
+            restitution: 0.5,
+            friction: 0.5,
+            collided: false,
+            gravity: None,
+            group: 0,
+            key: BodyKey(key),
+            behavior: Behavior::None,
+            id: String::new(),
+        }
+    }
+
+    fn params() -> ImpulseParams {
+        ImpulseParams {
+            iterations: 8,
+            warm_starting: true,
+            baumgarte: 0.2,
+            slop: 0.01,
+            dt: 1.0 / 60.0,
+        }
+    }
+
+    #[test]
+    fn a_head_on_collision_conserves_momentum_and_bounces_by_the_smaller_restitution() {
+        let mut bodies = vec![
+            body(0, DVec2::ZERO, DVec2::new(4.0, 0.0), 0.5),
+            body(1, DVec2::new(0.999, 0.0), DVec2::new(-2.0, 0.0), 1.0 / 3.0),
+        ];
+        let p0 = bodies[0].vel * 2.0 + bodies[1].vel * 3.0;
+        solve(
+            &mut bodies,
+            &mut vec![(0, 1)],
+            params(),
+            &mut ContactCache::default(),
+        );
+        let p1 = bodies[0].vel * 2.0 + bodies[1].vel * 3.0;
+        assert!((p1 - p0).length() < 1e-9);
+        let separation = bodies[1].vel.x - bodies[0].vel.x;
+        assert!((separation - 0.5 * 6.0).abs() < 1e-9, "{separation}");
+    }
+
+    #[test]
+    fn contacts_push_but_never_pull() {
+        // Separating already: no impulse at all.
+        let mut bodies = vec![
+            body(0, DVec2::ZERO, DVec2::new(-1.0, 0.0), 1.0),
+            body(1, DVec2::new(0.99, 0.0), DVec2::new(1.0, 0.0), 1.0),
+        ];
+        solve(
+            &mut bodies,
+            &mut vec![(0, 1)],
+            ImpulseParams {
+                baumgarte: 0.0,
+                ..params()
+            },
+            &mut ContactCache::default(),
+        );
+        assert_eq!(bodies[0].vel.x, -1.0);
+        assert_eq!(bodies[1].vel.x, 1.0);
+    }
+
+    #[test]
+    fn friction_stays_within_the_coulomb_cone_and_never_reverses_sliding() {
+        // A box sliding at 10 units/s on a static floor, pressed down at 1 unit/s.
+        let mut bodies = vec![
+            body(0, DVec2::ZERO, DVec2::ZERO, 0.0),
+            body(1, DVec2::new(0.0, 0.999), DVec2::new(10.0, -1.0), 1.0),
+        ];
+        solve(
+            &mut bodies,
+            &mut vec![(0, 1)],
+            ImpulseParams {
+                baumgarte: 0.0,
+                ..params()
+            },
+            &mut ContactCache::default(),
+        );
+        let v = bodies[1].vel;
+        // Normal impulse 1 (to stop the approach), friction at most 0.5 of it.
+        assert!((v.y - 0.0).abs() < 1e-9, "{v}");
+        assert!((v.x - 9.5).abs() < 1e-9, "{v}");
+        // A slow slider is stopped, not reversed.
+        let mut bodies = vec![
+            body(0, DVec2::ZERO, DVec2::ZERO, 0.0),
+            body(1, DVec2::new(0.0, 0.999), DVec2::new(0.2, -1.0), 1.0),
+        ];
+        solve(
+            &mut bodies,
+            &mut vec![(0, 1)],
+            ImpulseParams {
+                baumgarte: 0.0,
+                ..params()
+            },
+            &mut ContactCache::default(),
+        );
+        assert!(bodies[1].vel.x.abs() < 1e-9, "{}", bodies[1].vel);
+    }
+
+    #[test]
+    fn a_pair_listed_twice_is_one_contact() {
+        let mut bodies = vec![
+            body(0, DVec2::ZERO, DVec2::new(1.0, 0.0), 1.0),
+            body(1, DVec2::new(0.99, 0.0), DVec2::ZERO, 1.0),
+        ];
+        let r = solve(
+            &mut bodies,
+            &mut vec![(0, 1), (1, 0)],
+            params(),
+            &mut ContactCache::default(),
+        );
+        assert_eq!(r.contacts, 1);
+    }
+}
