@@ -13,6 +13,7 @@
 
 pub mod action;
 pub mod behavior;
+pub mod bench;
 pub mod dump;
 pub mod dynamics;
 pub mod geometry;

@@ -14,11 +14,13 @@ use rand_chacha::ChaCha8Rng;
 use crate::action::{Action, ActionError, ActionOutcome, MAX_PARTICLES_PER_ACTION};
 use crate::behavior::{self, Behavior};
 use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
-use crate::dynamics::broad_phase::{sweep_pairs, BroadPhase, SweepBuffers};
+use crate::dynamics::broad_phase::{
+    grid_pairs, sweep_pairs, BroadPhase, StaticGrid, SweepBuffers, STATIC_GRID_MIN_MEMBERS,
+};
 use crate::dynamics::config::Solver;
 use crate::dynamics::config::WorldConfig;
 use crate::dynamics::impulse::{self, ContactCache, ImpulseParams};
-use crate::dynamics::integrate::{integrate_bodies, integrate_positions, integrate_velocities};
+use crate::dynamics::integrate::{integrate_bodies, integrate_velocities};
 use crate::dynamics::relaxation::{self, RelaxationParams};
 use crate::geometry::{collide, Shape};
 use crate::particles::{Emitter, ParticleDef, Particles, PresetLibrary};
@@ -102,6 +104,11 @@ pub struct World {
     statics_revision: u64,
     // Scratch space of the broad phase and the impulse solver, kept between steps.
     sweep: SweepBuffers,
+    /// Per group: the layout revision it was last looked at for, and its static grid if
+    /// it is all static and large.
+    static_grids: Vec<(u64, Option<StaticGrid>)>,
+    /// Changes whenever bodies are added or removed or a static body is moved.
+    layout_revision: u64,
     pairs: Vec<(u32, u32)>,
     sweep_out: Vec<(u32, u32)>,
     contact_cache: ContactCache,
@@ -127,6 +134,8 @@ impl World {
             stats: StepStats::default(),
             statics_revision: 0,
             sweep: SweepBuffers::default(),
+            static_grids: Vec::new(),
+            layout_revision: 1,
             pairs: Vec::new(),
             sweep_out: Vec::new(),
             contact_cache: ContactCache::default(),
@@ -239,6 +248,7 @@ impl World {
         if def.mass == 0.0 {
             self.statics_revision += 1;
         }
+        self.layout_revision += 1;
         self.bodies.push(Body {
             pos: def.pos,
             vel: def.vel,
@@ -326,6 +336,7 @@ impl World {
         let before = self.bodies.len();
         self.bodies.retain(|b| !remove(b));
         if self.bodies.len() != before {
+            self.layout_revision += 1;
             self.rebuild_groups();
         }
     }
@@ -362,19 +373,15 @@ impl World {
             self.run_interactions(&mut stats, true, true, dt);
         } else {
             let n = self.config.substeps.max(1);
-            let h = dt / n as f64;
-            for _ in 0..n {
-                match self.config.solver {
-                    Solver::Relaxation => {
+            match self.config.solver {
+                Solver::Relaxation => {
+                    let h = dt / n as f64;
+                    for _ in 0..n {
                         integrate_bodies(&mut self.bodies, &self.config, h);
                         self.run_interactions(&mut stats, true, false, h);
                     }
-                    Solver::Impulses => {
-                        integrate_velocities(&mut self.bodies, &self.config, h);
-                        self.solve_impulses(&mut stats, h);
-                        integrate_positions(&mut self.bodies, h);
-                    }
                 }
+                Solver::Impulses => self.solve_impulses(&mut stats, dt),
             }
             self.explode_dye_packs_on_hero();
             self.move_particles();
@@ -400,34 +407,37 @@ impl World {
             iterations: self.config.relaxation_iterations,
             correction_rate: self.config.correction_rate,
         };
-        for inter in &self.interactions {
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
             match (inter.a, inter.b) {
                 (Side::Group(a), Side::Group(b)) if rigid => {
-                    let (ga, gb) = (
-                        &self.groups[a as usize].members,
-                        &self.groups[b as usize].members,
-                    );
-                    if ga.is_empty() || gb.is_empty() {
+                    if self.groups[a as usize].members.is_empty()
+                        || self.groups[b as usize].members.is_empty()
+                    {
                         continue;
                     }
                     let report = if !inter.resolve {
+                        let (ga, gb) = (
+                            &self.groups[a as usize].members,
+                            &self.groups[b as usize].members,
+                        );
                         relaxation::detect_only(&mut self.bodies, ga, gb)
                     } else {
                         match self.config.broad_phase {
                             BroadPhase::AllPairs => {
+                                let (ga, gb) = (
+                                    &self.groups[a as usize].members,
+                                    &self.groups[b as usize].members,
+                                );
                                 relaxation::relax(&mut self.bodies, ga, gb, params)
                             }
                             BroadPhase::Sweep => {
-                                sweep_pairs(
-                                    &self.bodies,
-                                    ga,
-                                    gb,
-                                    a == b,
-                                    dt,
-                                    &mut self.sweep,
-                                    &mut self.pairs,
-                                );
-                                relaxation::relax_pairs(&mut self.bodies, &self.pairs, params)
+                                let mut pairs = std::mem::take(&mut self.pairs);
+                                self.candidates(a, b, dt, &mut pairs);
+                                let report =
+                                    relaxation::relax_pairs(&mut self.bodies, &pairs, params);
+                                self.pairs = pairs;
+                                report
                             }
                         }
                     };
@@ -459,11 +469,57 @@ impl World {
         }
     }
 
-    /// One sub-step of the impulse solver over the contacts of every rigid interaction.
+    /// Candidate pairs of the interaction between groups `a` and `b` (sweep broad phase):
+    /// against a large all-static group, from its cached grid; otherwise by sweep and prune.
+    fn candidates(&mut self, a: GroupId, b: GroupId, dt: f64, out: &mut Vec<(u32, u32)>) {
+        if a != b {
+            for (fixed, moving, static_first) in [(b, a, false), (a, b, true)] {
+                if self.static_grid(fixed) {
+                    let grid = self.static_grids[fixed as usize]
+                        .1
+                        .as_ref()
+                        .expect("checked above");
+                    let (ms, ss) = (
+                        &self.groups[moving as usize].members,
+                        &self.groups[fixed as usize].members,
+                    );
+                    grid_pairs(&self.bodies, ms, ss, grid, static_first, dt, out);
+                    return;
+                }
+            }
+        }
+        let (ga, gb) = (
+            &self.groups[a as usize].members,
+            &self.groups[b as usize].members,
+        );
+        sweep_pairs(&self.bodies, ga, gb, a == b, dt, &mut self.sweep, out);
+    }
+
+    /// Whether group `g` has a static grid now (building it if the layout changed).
+    fn static_grid(&mut self, g: GroupId) -> bool {
+        let g = g as usize;
+        if self.static_grids.len() <= g {
+            self.static_grids.resize_with(g + 1, || (0, None));
+        }
+        if self.static_grids[g].0 != self.layout_revision {
+            let members = &self.groups[g].members;
+            let eligible = members.len() > STATIC_GRID_MIN_MEMBERS
+                && members.iter().all(|&i| self.bodies[i as usize].is_static());
+            let grid =
+                eligible.then(|| StaticGrid::build(&self.bodies, members, self.layout_revision));
+            self.static_grids[g] = (self.layout_revision, grid);
+        }
+        self.static_grids[g].1.is_some()
+    }
+
+    /// One frame of the impulse solver (all its sub-steps) over the contacts of every rigid
+    /// interaction.
     fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
         let mut all = std::mem::take(&mut self.pairs);
+        let mut some = std::mem::take(&mut self.sweep_out);
         all.clear();
-        for inter in &self.interactions {
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
             let (Side::Group(a), Side::Group(b)) = (inter.a, inter.b) else {
                 continue;
             };
@@ -482,27 +538,16 @@ impl World {
             match self.config.broad_phase {
                 BroadPhase::AllPairs => {
                     for &i in ga {
-                        for &j in gb {
-                            if i != j {
-                                all.push((i, j));
-                            }
-                        }
+                        all.extend(gb.iter().filter(|&&j| j != i).map(|&j| (i, j)));
                     }
                 }
                 BroadPhase::Sweep => {
-                    sweep_pairs(
-                        &self.bodies,
-                        ga,
-                        gb,
-                        a == b,
-                        h,
-                        &mut self.sweep,
-                        &mut self.sweep_out,
-                    );
-                    all.extend_from_slice(&self.sweep_out);
+                    self.candidates(a, b, h, &mut some);
+                    all.extend_from_slice(&some);
                 }
             }
         }
+        self.sweep_out = some;
         let params = ImpulseParams {
             iterations: self.config.impulse_iterations,
             warm_starting: self.config.warm_starting,
@@ -510,9 +555,17 @@ impl World {
             slop: self.config.slop,
             dt: h,
         };
-        let report = impulse::solve(&mut self.bodies, &mut all, params, &mut self.contact_cache);
+        let config = &self.config;
+        let report = impulse::solve_frame(
+            &mut self.bodies,
+            &mut all,
+            params,
+            config.substeps,
+            &mut self.contact_cache,
+            |bodies, h| integrate_velocities(bodies, config, h),
+        );
         stats.contacts += report.contacts;
-        stats.relaxation_iterations += self.config.impulse_iterations as u64;
+        stats.relaxation_iterations += (config.impulse_iterations * config.substeps) as u64;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
         self.pairs = all;
     }

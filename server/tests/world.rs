@@ -522,3 +522,38 @@ fn every_shipped_scene_loads_and_runs_without_nan() {
     }
     assert!(seen >= 10, "only {seen} scenes found");
 }
+
+#[test]
+fn the_sweep_broad_phase_gives_the_chapters_all_pairs_results_bit_for_bit() {
+    let actions = vec![
+        (
+            5,
+            Action::Press {
+                dir: Direction::Right,
+            },
+        ),
+        (10, Action::FireDyePack { at: [150.0, 80.0] }),
+        (12, Action::SpawnDumbMinion { at: [100.0, 70.0] }),
+        (14, Action::SpawnDumbMinion { at: [104.0, 90.0] }),
+        (30, Action::Agitate { strength: None }),
+    ];
+    for scene_name in ["emitters.toml", "bounds.toml", "pyramid-10.toml"] {
+        let mut all_pairs = asset(scene_name);
+        all_pairs
+            .apply(&Action::Set {
+                name: "broad_phase".into(),
+                value: serde_json::json!("all_pairs"),
+            })
+            .unwrap();
+        let sweep = asset(scene_name);
+        assert_eq!(
+            sweep.config.broad_phase,
+            ricochet::dynamics::BroadPhase::Sweep
+        );
+        assert_eq!(
+            run_dump(all_pairs, &actions, 240),
+            run_dump(sweep, &actions, 240),
+            "{scene_name}"
+        );
+    }
+}

@@ -98,6 +98,23 @@ enum Command {
         #[arg(long)]
         max_frames: Option<u64>,
     },
+    /// Measure the engine: the large pyramid under each solver setting, particles against
+    /// shapes, free particles, and a hero among few or many static platforms. Prints a
+    /// table (and CSV with --csv). Use a release build.
+    Bench {
+        /// Levels of the pyramid (100: the brief's 5050 boxes).
+        #[arg(long, default_value_t = 100)]
+        levels: u32,
+        /// Steps of the pyramid (the brief: 500).
+        #[arg(long, default_value_t = 500)]
+        steps: u64,
+        /// Only the cases whose name contains this.
+        #[arg(long)]
+        only: Option<String>,
+        /// Also write the figures as CSV.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+    },
     /// Run a zenoh router: servers and clients on several hosts connect to it
     /// (`--mode client --connect tcp/<router>:7447`) and meet there.
     Router {
@@ -167,6 +184,12 @@ fn main() -> Result<()> {
             keyframe_interval,
             max_frames,
         }),
+        Command::Bench {
+            levels,
+            steps,
+            only,
+            csv,
+        } => bench(levels, steps, only.as_deref(), csv.as_deref()),
         Command::Router { network } => {
             let mut net = network.server();
             net.mode = Mode::Router;
@@ -191,6 +214,50 @@ fn main() -> Result<()> {
             wire_stats.then_some(keyframe_interval),
         ),
     }
+}
+
+fn bench(levels: u32, steps: u64, only: Option<&str>, csv: Option<&Path>) -> Result<()> {
+    use ricochet::bench::*;
+    let wanted = |name: &str| only.is_none_or(|o| name.contains(o));
+    let mut figures = Vec::new();
+    let mut report = |f: Figure| {
+        println!(
+            "| {} | {} | {} | {:.4} | {:.4} {} |",
+            f.case, f.setting, f.steps, f.ms_per_step, f.extra, f.extra_name
+        );
+        figures.push(f);
+    };
+    println!("| case | setting | steps | median ms/step | figure |\n|---|---|---|---|---|");
+    if wanted("pyramid") {
+        for (name, config) in pyramid_settings() {
+            // The chapter's relaxation is too slow for 500 steps of the large pyramid.
+            let n = if config.solver == ricochet::dynamics::Solver::Relaxation && levels > 20 {
+                steps.min(20)
+            } else {
+                steps
+            };
+            report(pyramid_case(levels, &name, config, n));
+        }
+    }
+    if wanted("particles") {
+        report(particle_case(100_000, 100, 50));
+        report(particle_case(1_000_000, 0, 20));
+    }
+    if wanted("platforms") {
+        report(statics_case(10, 600));
+        report(statics_case(10_000, 600));
+    }
+    if let Some(path) = csv {
+        let mut out = String::from("case,setting,steps,ms_per_step,figure,figure_name\n");
+        for f in &figures {
+            out += &format!(
+                "\"{}\",\"{}\",{},{},{},\"{}\"\n",
+                f.case, f.setting, f.steps, f.ms_per_step, f.extra, f.extra_name
+            );
+        }
+        std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(())
 }
 
 fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {

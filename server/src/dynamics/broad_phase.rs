@@ -204,6 +204,31 @@ mod tests {
         }
     }
 
+    proptest! {
+        /// The static grid finds the same candidate pairs, in the same order, as the sweep
+        /// (up to pairs the sweep keeps whose boxes only touch through its margins).
+        #[test]
+        fn the_static_grid_keeps_every_colliding_pair_in_all_pairs_order(
+            statics in proptest::collection::vec((0.0f64..200.0, 0.0f64..100.0, 0.5f64..30.0, 0.5f64..5.0), 33..120),
+            movers in proptest::collection::vec((0.0f64..200.0, 0.0f64..100.0, 0.5f64..20.0, 0.5f64..20.0), 1..10),
+            static_first in prop::bool::ANY,
+        ) {
+            let mut bodies: Vec<Body> = statics.iter().map(|&(x, y, w, h)| body(x, y, w, h, 0.0)).collect();
+            bodies.extend(movers.iter().map(|&(x, y, w, h)| body(x, y, w, h, 1.0)));
+            let s: Vec<u32> = (0..statics.len() as u32).collect();
+            let m: Vec<u32> = (statics.len() as u32..bodies.len() as u32).collect();
+            let grid = StaticGrid::build(&bodies, &s, 0);
+            let mut pairs = Vec::new();
+            let (ga, gb) = if static_first { (&s, &m) } else { (&m, &s) };
+            grid_pairs(&bodies, &m, &s, &grid, static_first, 1.0 / 60.0, &mut pairs);
+            let colliding = colliding_all_pairs(&bodies, ga, gb);
+            let kept: Vec<(u32, u32)> = pairs.iter().copied().filter(|p| colliding.contains(p)).collect();
+            prop_assert_eq!(&kept, &colliding);
+            let order = |p: &(u32, u32)| (ga.iter().position(|&x| x == p.0).unwrap(), gb.iter().position(|&x| x == p.1).unwrap());
+            prop_assert!(pairs.windows(2).all(|w| order(&w[0]) < order(&w[1])));
+        }
+    }
+
     #[test]
     fn far_apart_and_static_pairs_are_dropped() {
         let bodies = vec![
@@ -224,4 +249,147 @@ mod tests {
         );
         assert_eq!(pairs, vec![(0, 2), (0, 3), (2, 0), (3, 0)]);
     }
+}
+
+/// A uniform grid over a group whose members are all static, built once and kept until
+/// bodies are added, removed or moved by hand: an interaction between a few moving bodies
+/// and many static ones costs what the moving bodies' neighbourhoods cost, not the size
+/// of the static group.
+#[derive(Clone, Debug)]
+pub struct StaticGrid {
+    cell: f64,
+    cells: std::collections::HashMap<(i64, i64), Vec<u32>>,
+    /// Members too large for the grid (they would fill too many cells): always tested.
+    oversized: Vec<u32>,
+    /// The world's layout revision the grid was built for.
+    pub revision: u64,
+}
+
+/// Groups with more members than this get a static grid when all are static.
+pub const STATIC_GRID_MIN_MEMBERS: usize = 32;
+const MAX_CELLS_PER_MEMBER: i64 = 64;
+
+impl StaticGrid {
+    /// A grid of `members` (slots are positions in `members`); cells twice the mean half
+    /// extent of the members.
+    pub fn build(bodies: &[Body], members: &[u32], revision: u64) -> Self {
+        let mean_half = members
+            .iter()
+            .map(|&i| bodies[i as usize].shape.half_extents().max_element())
+            .sum::<f64>()
+            / members.len().max(1) as f64;
+        let cell = (2.0 * mean_half).max(1e-9);
+        let mut grid = StaticGrid {
+            cell,
+            cells: Default::default(),
+            oversized: Vec::new(),
+            revision,
+        };
+        for (slot, &i) in members.iter().enumerate() {
+            let b = &bodies[i as usize];
+            let Aabb { min, max } = Aabb::of(&b.shape, b.pos);
+            let (x0, y0, x1, y1) = grid.range(min, max);
+            if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > MAX_CELLS_PER_MEMBER {
+                grid.oversized.push(slot as u32);
+                continue;
+            }
+            for cx in x0..=x1 {
+                for cy in y0..=y1 {
+                    grid.cells.entry((cx, cy)).or_default().push(slot as u32);
+                }
+            }
+        }
+        grid
+    }
+
+    fn range(&self, min: glam::DVec2, max: glam::DVec2) -> (i64, i64, i64, i64) {
+        let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
+        (c(min.x), c(min.y), c(max.x), c(max.y))
+    }
+
+    /// Slots of the members whose cells the box touches (unsorted, without repeats).
+    fn query(&self, min: glam::DVec2, max: glam::DVec2, out: &mut Vec<u32>) {
+        let start = out.len();
+        let (x0, y0, x1, y1) = self.range(min, max);
+        if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > 4096 {
+            // A box larger than the grid's reach: every member is a candidate.
+            out.extend(self.cells.values().flatten().copied());
+        } else {
+            for cx in x0..=x1 {
+                for cy in y0..=y1 {
+                    if let Some(slots) = self.cells.get(&(cx, cy)) {
+                        out.extend_from_slice(slots);
+                    }
+                }
+            }
+        }
+        out.extend_from_slice(&self.oversized);
+        out[start..].sort_unstable();
+        let mut w = start;
+        for r in start..out.len() {
+            if r == start || out[r] != out[w - 1] {
+                out[w] = out[r];
+                w += 1;
+            }
+        }
+        out.truncate(w);
+    }
+}
+
+/// Candidate pairs of a moving group against a static group held in `grid`, in all-pairs
+/// order. `static_first` says whether the static group is the interaction's first side.
+pub fn grid_pairs(
+    bodies: &[Body],
+    moving: &[u32],
+    statics: &[u32],
+    grid: &StaticGrid,
+    static_first: bool,
+    dt: f64,
+    out: &mut Vec<(u32, u32)>,
+) {
+    out.clear();
+    let mut slots = Vec::new();
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
+    for (ms, &i) in moving.iter().enumerate() {
+        let b = &bodies[i as usize];
+        if b.is_static() {
+            continue;
+        }
+        let m = margin(b, dt);
+        let Aabb { min, max } = Aabb::of(&b.shape, b.pos);
+        slots.clear();
+        grid.query(min - m, max + m, &mut slots);
+        for &ss in &slots {
+            let j = statics[ss as usize];
+            let o = &bodies[j as usize];
+            let Aabb {
+                min: omin,
+                max: omax,
+            } = Aabb::of(&o.shape, o.pos);
+            if omin.x > max.x + m
+                || min.x - m > omax.x
+                || omin.y > max.y + m
+                || min.y - m > omax.y
+                || i == j
+            {
+                continue;
+            }
+            pairs.push(if static_first {
+                (ss, ms as u32)
+            } else {
+                (ms as u32, ss)
+            });
+        }
+    }
+    pairs.sort_unstable();
+    let (first, second) = if static_first {
+        (statics, moving)
+    } else {
+        (moving, statics)
+    };
+    out.extend(
+        pairs
+            .iter()
+            .map(|&(p, q)| (first[p as usize], second[q as usize])),
+    );
 }

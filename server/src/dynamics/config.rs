@@ -111,7 +111,7 @@ impl Default for WorldConfig {
             impulse_iterations: 8,
             warm_starting: true,
             baumgarte: 0.2,
-            slop: 0.01,
+            slop: 0.001,
         }
     }
 }

@@ -1,14 +1,18 @@
 //! The sequential-impulse contact solver (`solver = "impulses"`).
 //!
+//! Contacts are speculative: a pair still apart by a gap `s` gets the constraint "approach
+//! at most `s / dt`", so bodies meet exactly instead of sinking in and being pushed back.
+//!
 //! Contacts of every resolving interaction are solved together: each velocity iteration
 //! visits every contact once and applies the normal impulse that brings the bodies'
 //! normal velocity to its target, accumulating it and clamping the sum at zero (contacts
 //! push, never pull), then a Coulomb friction impulse clamped by `friction x normal
 //! impulse`. The target is the restitution bounce for an approach faster than
 //! [`RESTITUTION_SPEED`], plus a Baumgarte bias that removes `baumgarte` of the
-//! penetration beyond the slop per step. Impulses are kept between steps (keyed by the
+//! penetration beyond the slop per sub-step. Impulses are kept between steps (keyed by the
 //! pair of bodies) and applied first next step: warm starting, which lets stacks and
-//! pyramids settle in a few iterations. Positions move only by velocity, after the solve.
+//! pyramids settle in a few iterations. Positions move only by velocity, after each
+//! sub-step's solve.
 //!
 //! Shapes do not rotate, so one contact per pair carries all of it.
 
@@ -17,7 +21,7 @@ use std::collections::HashMap;
 use glam::DVec2;
 
 use super::body::{Body, BodyKey};
-use crate::geometry::collide;
+use crate::geometry::separation;
 
 /// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
@@ -43,8 +47,14 @@ struct Contact {
     /// 1 / (inv_a + inv_b).
     mass: f64,
     friction: f64,
-    /// Normal velocity the contact drives toward.
-    target: f64,
+    /// Separation at the start of the frame (negative: penetration).
+    gap: f64,
+    /// Penetration left alone.
+    slop: f64,
+    /// Normal velocity of the restitution bounce (0 for a resting contact).
+    bounce: f64,
+    start_a: DVec2,
+    start_b: DVec2,
     normal_impulse: f64,
     tangent_impulse: f64,
 }
@@ -68,13 +78,19 @@ pub struct ImpulseReport {
     pub deepest: f64,
 }
 
-/// Solves the contacts among `pairs` (body indices; a pair listed in both orders counts
-/// once). Velocities change; positions do not.
-pub fn solve(
+/// One frame of the impulse solver: finds the contacts among `pairs` once (body indices;
+/// a pair listed in both orders counts once), then runs `substeps` sub-steps of
+/// `dt / substeps`: `integrate_velocities(h)`, warm start, velocity iterations, and
+/// `p += v h`. Within the frame a contact's separation is tracked from how far its two
+/// bodies moved along its normal, so detection runs once per frame however many sub-steps
+/// there are (in the manner of Box2D v3's soft step).
+pub fn solve_frame(
     bodies: &mut [Body],
     pairs: &mut Vec<(u32, u32)>,
     params: ImpulseParams,
+    substeps: u32,
     cache: &mut ContactCache,
+    mut integrate_velocities: impl FnMut(&mut [Body], f64),
 ) -> ImpulseReport {
     // One contact per unordered pair, in a deterministic order.
     for p in pairs.iter_mut() {
@@ -85,33 +101,38 @@ pub fn solve(
     pairs.sort_unstable();
     pairs.dedup();
 
+    let frame_dt = params.dt;
+    let substeps = substeps.max(1);
+    let h = frame_dt / substeps as f64;
+    let inv_h = 1.0 / h;
     let mut report = ImpulseReport::default();
     let mut contacts = Vec::with_capacity(pairs.len());
-    let inv_dt = 1.0 / params.dt;
     for &(i, j) in pairs.iter() {
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
         if a.inv_mass + b.inv_mass == 0.0 {
             continue;
         }
-        let Some(info) = collide(&a.shape, a.pos, &b.shape, b.pos) else {
-            continue;
-        };
-        report.contacts += 1;
-        report.deepest = report.deepest.max(info.depth);
-        let n = info.normal;
+        let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
         let approach = (b.vel - a.vel).dot(n);
-        let bounce = if approach < -RESTITUTION_SPEED {
-            -a.restitution.min(b.restitution) * approach
-        } else {
-            0.0
-        };
         let size = a
             .shape
             .half_extents()
             .min_element()
             .min(b.shape.half_extents().min_element())
             * 2.0;
-        let push_out = params.baumgarte * inv_dt * (info.depth - params.slop * size).max(0.0);
+        // Too far apart to meet within the frame: no contact.
+        if gap > (b.vel - a.vel).length() * frame_dt + 0.1 * size {
+            continue;
+        }
+        if gap <= 0.0 {
+            report.contacts += 1;
+            report.deepest = report.deepest.max(-gap);
+        }
+        let bounce = if approach < -RESTITUTION_SPEED {
+            -a.restitution.min(b.restitution) * approach
+        } else {
+            0.0
+        };
         let mut c = Contact {
             a: i,
             b: j,
@@ -120,11 +141,16 @@ pub fn solve(
             inv_b: b.inv_mass,
             mass: 1.0 / (a.inv_mass + b.inv_mass),
             friction: (a.friction * b.friction).sqrt(),
-            target: bounce.max(push_out),
+            gap,
+            slop: params.slop * size,
+            bounce,
+            start_a: a.pos,
+            start_b: b.pos,
             normal_impulse: 0.0,
             tangent_impulse: 0.0,
         };
-        if params.warm_starting {
+        // Only contacts that touch start from their last impulses.
+        if params.warm_starting && gap <= c.slop {
             if let Some(&(old_n, jn, jt)) = cache.impulses.get(&(a.key, b.key)) {
                 if old_n.dot(n) > 0.99 {
                     c.normal_impulse = jn;
@@ -135,46 +161,70 @@ pub fn solve(
         contacts.push(c);
     }
 
-    for c in &contacts {
-        bodies[c.a as usize].collided = true;
-        bodies[c.b as usize].collided = true;
-        if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
-            let t = DVec2::new(-c.normal.y, c.normal.x);
-            apply(
-                bodies,
-                c,
-                c.normal * c.normal_impulse + t * c.tangent_impulse,
-            );
+    for step in 0..substeps {
+        integrate_velocities(bodies, h);
+        // Warm start: the impulses of the last sub-step (or frame) once more.
+        if params.warm_starting || step > 0 {
+            for c in &contacts {
+                if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
+                    let t = DVec2::new(-c.normal.y, c.normal.x);
+                    apply(
+                        bodies,
+                        c,
+                        c.normal * c.normal_impulse + t * c.tangent_impulse,
+                    );
+                }
+            }
         }
-    }
-
-    for _ in 0..params.iterations {
+        for _ in 0..params.iterations {
+            for c in contacts.iter_mut() {
+                let (a, b) = (c.a as usize, c.b as usize);
+                let dv = bodies[b].vel - bodies[a].vel;
+                // Separation now: the frame's start plus how far the bodies moved since.
+                let gap = c.gap
+                    + ((bodies[b].pos - c.start_b) - (bodies[a].pos - c.start_a)).dot(c.normal);
+                let target = if gap > 0.0 {
+                    // Speculative: close the gap within this sub-step, no further.
+                    -gap * inv_h
+                } else {
+                    params.baumgarte * inv_h * (-gap - c.slop).max(0.0)
+                };
+                let target = target.max(c.bounce);
+                // Normal: drive the normal velocity to its target, never pulling.
+                let vn = dv.dot(c.normal);
+                let total = (c.normal_impulse + c.mass * (target - vn)).max(0.0);
+                let dn = total - c.normal_impulse;
+                c.normal_impulse = total;
+                // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
+                // (The normal impulse does not change the tangential velocity.)
+                let t = DVec2::new(-c.normal.y, c.normal.x);
+                let vt = dv.dot(t);
+                let limit = c.friction * c.normal_impulse;
+                let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
+                let dt_imp = total_t - c.tangent_impulse;
+                c.tangent_impulse = total_t;
+                let p = c.normal * dn + t * dt_imp;
+                bodies[a].vel -= p * c.inv_a;
+                bodies[b].vel += p * c.inv_b;
+            }
+        }
+        for body in bodies.iter_mut().filter(|b| !b.is_static()) {
+            body.pos += body.vel * h;
+        }
+        // A bounce happens once.
         for c in contacts.iter_mut() {
-            let (va, vb) = (bodies[c.a as usize].vel, bodies[c.b as usize].vel);
-            let dv = vb - va;
-            // Normal: drive the normal velocity to its target, never pulling.
-            let vn = dv.dot(c.normal);
-            let lambda = c.mass * (c.target - vn);
-            let total = (c.normal_impulse + lambda).max(0.0);
-            let dn = total - c.normal_impulse;
-            c.normal_impulse = total;
-            // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
-            let t = DVec2::new(-c.normal.y, c.normal.x);
-            // The normal impulse does not change the tangential velocity.
-            let vt = dv.dot(t);
-            let limit = c.friction * c.normal_impulse;
-            let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
-            let dt_imp = total_t - c.tangent_impulse;
-            c.tangent_impulse = total_t;
-            let p = c.normal * dn + t * dt_imp;
-            let (a, b) = (c.a as usize, c.b as usize);
-            bodies[a].vel -= p * c.inv_a;
-            bodies[b].vel += p * c.inv_b;
+            if c.normal_impulse > 0.0 {
+                c.bounce = 0.0;
+            }
         }
     }
 
     cache.impulses.clear();
     for c in &contacts {
+        if c.normal_impulse > 0.0 {
+            bodies[c.a as usize].collided = true;
+            bodies[c.b as usize].collided = true;
+        }
         let key = (bodies[c.a as usize].key, bodies[c.b as usize].key);
         cache
             .impulses
@@ -209,6 +259,16 @@ mod tests {
             behavior: Behavior::None,
             id: String::new(),
         }
+    }
+
+    /// One frame of one sub-step, without gravity.
+    fn solve(
+        bodies: &mut [Body],
+        pairs: &mut Vec<(u32, u32)>,
+        params: ImpulseParams,
+        cache: &mut ContactCache,
+    ) -> ImpulseReport {
+        solve_frame(bodies, pairs, params, 1, cache, |_, _| {})
     }
 
     fn params() -> ImpulseParams {

@@ -41,13 +41,6 @@ pub fn integrate_velocities(bodies: &mut [Body], config: &WorldConfig, dt: f64) 
     }
 }
 
-/// The second half: `p += v dt`.
-pub fn integrate_positions(bodies: &mut [Body], dt: f64) {
-    for body in bodies.iter_mut().filter(|b| !b.is_static()) {
-        body.pos += body.vel * dt;
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

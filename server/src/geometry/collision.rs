@@ -149,6 +149,64 @@ pub fn nearest_side(d: DVec2, half: DVec2) -> (DVec2, f64) {
     }
 }
 
+/// Signed distance between two shapes along a normal from the first toward the second:
+/// positive when apart (the gap), negative when overlapping (minus the depth). Used by the
+/// impulse solver's speculative contacts; agrees with [`collide`] when they overlap.
+pub fn separation(a: &Shape, pa: DVec2, b: &Shape, pb: DVec2) -> (f64, DVec2) {
+    match (*a, *b) {
+        (Shape::Rect { half: ha }, Shape::Rect { half: hb }) => {
+            let d = pb - pa;
+            let gap = d.abs() - (ha + hb);
+            let sx = if d.x < 0.0 { -1.0 } else { 1.0 };
+            let sy = if d.y < 0.0 { -1.0 } else { 1.0 };
+            if gap.x < 0.0 && gap.y < 0.0 {
+                // Overlapping: the axis of least penetration, ties to y (as `collide_rects`).
+                if -gap.x < -gap.y {
+                    (gap.x, DVec2::new(sx, 0.0))
+                } else {
+                    (gap.y, DVec2::new(0.0, sy))
+                }
+            } else if gap.x > gap.y {
+                (gap.x, DVec2::new(sx, 0.0))
+            } else {
+                (gap.y, DVec2::new(0.0, sy))
+            }
+        }
+        (Shape::Circle { radius: ra }, Shape::Circle { radius: rb }) => {
+            let d = pb - pa;
+            let dist = d.length();
+            if dist > 0.0 {
+                (dist - ra - rb, d / dist)
+            } else {
+                (-(ra + rb) / 10.0, DVec2::Y)
+            }
+        }
+        (Shape::Rect { half }, Shape::Circle { radius }) => {
+            rect_circle_separation(pa, half, pb, radius)
+        }
+        (Shape::Circle { radius }, Shape::Rect { half }) => {
+            let (s, n) = rect_circle_separation(pb, half, pa, radius);
+            (s, -n)
+        }
+    }
+}
+
+fn rect_circle_separation(
+    rect_pos: DVec2,
+    half: DVec2,
+    circle_pos: DVec2,
+    radius: f64,
+) -> (f64, DVec2) {
+    let d = circle_pos - rect_pos;
+    if d.x.abs() <= half.x && d.y.abs() <= half.y {
+        let (normal, to_side) = nearest_side(d, half);
+        return (-(radius + to_side), normal);
+    }
+    let out = d - d.clamp(-half, half);
+    let dist = out.length();
+    (dist - radius, out / dist)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -281,6 +339,18 @@ mod tests {
         let circle = Shape::circle(1.0);
         assert!(circle.contains(v(0.0, 0.0), v(0.6, 0.79)));
         assert!(!circle.contains(v(0.0, 0.0), v(0.6, 0.8)));
+    }
+
+    #[test]
+    fn separation_is_the_gap_apart_and_minus_the_depth_overlapping() {
+        let h = Shape::rect(2.0, 2.0);
+        let (s, n) = separation(&h, v(0.0, 0.0), &h, v(0.0, 2.5));
+        assert!(close(s, 0.5) && n == v(0.0, 1.0));
+        let (s, n) = separation(&h, v(0.0, 0.0), &h, v(-1.5, 0.2));
+        let c = collide(&h, v(0.0, 0.0), &h, v(-1.5, 0.2)).unwrap();
+        assert!(close(s, -c.depth) && n == c.normal);
+        let (s, n) = separation(&Shape::circle(1.0), v(0.0, 0.0), &h, v(0.0, 3.0));
+        assert!(close(s, 1.0) && n == v(0.0, 1.0));
     }
 
     mod properties {

@@ -3,5 +3,5 @@
 pub mod collision;
 pub mod shape;
 
-pub use collision::{collide, CollisionInfo};
+pub use collision::{collide, separation, CollisionInfo};
 pub use shape::{Aabb, Shape};
