@@ -20,6 +20,7 @@ pub mod geometry;
 pub mod host;
 pub mod particles;
 pub mod scene;
+pub mod tradeoff;
 pub mod wire;
 pub mod world;
 

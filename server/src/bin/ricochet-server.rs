@@ -115,6 +115,14 @@ enum Command {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
+    /// Run the matrix of scenes x solver settings and write what each setting costs and
+    /// buys: DIR/tradeoff.csv and DIR/tradeoff.png (time against error, the front in red).
+    /// Use a release build.
+    Tradeoff {
+        /// Where to write the report.
+        #[arg(long, default_value = "docs/tradeoff")]
+        out: PathBuf,
+    },
     /// Run a zenoh router: servers and clients on several hosts connect to it
     /// (`--mode client --connect tcp/<router>:7447`) and meet there.
     Router {
@@ -190,6 +198,27 @@ fn main() -> Result<()> {
             only,
             csv,
         } => bench(levels, steps, only.as_deref(), csv.as_deref()),
+        Command::Tradeoff { out } => {
+            std::fs::create_dir_all(&out)
+                .with_context(|| format!("cannot create {}", out.display()))?;
+            let cells = ricochet::tradeoff::run_matrix();
+            std::fs::write(out.join("tradeoff.csv"), ricochet::tradeoff::to_csv(&cells))?;
+            ricochet::tradeoff::chart(&cells, &out.join("tradeoff.png"))?;
+            for c in &cells {
+                println!(
+                    "{:<11} {:<38} {:>9.4} ms  error {:>10.3e}  deepest {:>9.2e}  energy {:>+9.2e}{}{}",
+                    c.scene, c.setting, c.ms_per_step, c.error, c.deepest_penetration, c.energy_drift,
+                    if c.nan { "  NaN" } else { "" },
+                    if ricochet::tradeoff::on_front(c, &cells) { "  front" } else { "" }
+                );
+            }
+            eprintln!(
+                "wrote {} and {}",
+                out.join("tradeoff.csv").display(),
+                out.join("tradeoff.png").display()
+            );
+            Ok(())
+        }
         Command::Router { network } => {
             let mut net = network.server();
             net.mode = Mode::Router;
