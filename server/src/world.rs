@@ -115,6 +115,12 @@ pub struct World {
     layout_revision: u64,
     pairs: Vec<(u32, u32)>,
     sweep_out: Vec<(u32, u32)>,
+    /// Indices of the dynamic bodies, and of the bodies with a behaviour: what a step
+    /// walks, so static bodies cost nothing unless something touches them.
+    movers: Vec<u32>,
+    behaving: Vec<u32>,
+    /// Bodies flagged collided in the last step, to clear at the next.
+    flagged: Vec<u32>,
     contact_cache: ContactCache,
 }
 
@@ -142,6 +148,9 @@ impl World {
             layout_revision: 1,
             pairs: Vec::new(),
             sweep_out: Vec::new(),
+            movers: Vec::new(),
+            behaving: Vec::new(),
+            flagged: Vec::new(),
             contact_cache: ContactCache::default(),
         }
     }
@@ -219,7 +228,10 @@ impl World {
 
     /// Total kinetic energy of the rigid bodies.
     pub fn kinetic_energy(&self) -> f64 {
-        self.bodies.iter().map(Body::kinetic_energy).sum()
+        self.movers
+            .iter()
+            .map(|&i| self.bodies[i as usize].kinetic_energy())
+            .sum()
     }
 
     // ---- building ------------------------------------------------------------------
@@ -268,6 +280,13 @@ impl World {
             id: def.id,
         });
         self.groups[group as usize].members.push(index);
+        let body = &self.bodies[index as usize];
+        if !body.is_static() {
+            self.movers.push(index);
+        }
+        if body.behavior != Behavior::None {
+            self.behaving.push(index);
+        }
         Ok(key)
     }
 
@@ -349,8 +368,20 @@ impl World {
         for g in &mut self.groups {
             g.members.clear();
         }
+        self.movers.clear();
+        self.behaving.clear();
+        self.flagged.clear();
         for (i, b) in self.bodies.iter().enumerate() {
             self.groups[b.group as usize].members.push(i as u32);
+            if !b.is_static() {
+                self.movers.push(i as u32);
+            }
+            if b.behavior != Behavior::None {
+                self.behaving.push(i as u32);
+            }
+            if b.collided {
+                self.flagged.push(i as u32);
+            }
         }
     }
 
@@ -364,14 +395,15 @@ impl World {
     /// resolve), then the particles move and meet the shapes where they ended.
     pub fn step(&mut self) {
         let mut stats = StepStats::default();
-        for b in &mut self.bodies {
-            b.collided = false;
+        for &i in &self.flagged {
+            self.bodies[i as usize].collided = false;
         }
+        self.flagged.clear();
         self.run_behaviors();
         let dt = self.config.dt;
         let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
         if chapter_order {
-            integrate_bodies(&mut self.bodies, &self.config, dt);
+            integrate_bodies(&mut self.bodies, &self.movers, &self.config, dt);
             self.explode_dye_packs_on_hero();
             self.move_particles();
             self.run_interactions(&mut stats, true, true, dt);
@@ -381,7 +413,7 @@ impl World {
                 Solver::Relaxation => {
                     let h = dt / n as f64;
                     for _ in 0..n {
-                        integrate_bodies(&mut self.bodies, &self.config, h);
+                        integrate_bodies(&mut self.bodies, &self.movers, &self.config, h);
                         self.run_interactions(&mut stats, true, false, h);
                     }
                 }
@@ -587,17 +619,20 @@ impl World {
             dt: h,
         };
         let config = &self.config;
+        let movers = &self.movers;
         let report = impulse::solve_frame(
             &mut self.bodies,
             &mut all,
             params,
             config.substeps,
             &mut self.contact_cache,
-            |bodies, h| integrate_velocities(bodies, config, h),
+            movers,
+            |bodies, h| integrate_velocities(bodies, movers, config, h),
         );
         stats.contacts += report.contacts;
         stats.relaxation_iterations += (config.impulse_iterations * config.substeps) as u64;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+        flag_pairs(&self.bodies, &all, &mut self.flagged);
         self.pairs = all;
     }
 
@@ -608,18 +643,24 @@ impl World {
         }
     }
 
-    fn hero_pos(&self) -> Option<DVec2> {
-        self.bodies
+    /// The first hero's index.
+    fn hero(&self) -> Option<usize> {
+        self.behaving
             .iter()
-            .find(|b| matches!(b.behavior, Behavior::Hero { .. }))
-            .map(|b| b.pos)
+            .map(|&i| i as usize)
+            .find(|&i| matches!(self.bodies[i].behavior, Behavior::Hero { .. }))
+    }
+
+    fn hero_pos(&self) -> Option<DVec2> {
+        self.hero().map(|i| self.bodies[i].pos)
     }
 
     fn run_behaviors(&mut self) {
         let dt = self.config.dt;
         let hero = self.hero_pos();
         let mut expired_packs = false;
-        for b in &mut self.bodies {
+        for &i in &self.behaving {
+            let b = &mut self.bodies[i as usize];
             let movable = !b.is_static();
             match &mut b.behavior {
                 Behavior::None | Behavior::DumbMinion => {}
@@ -656,17 +697,14 @@ impl World {
 
     /// Dye packs touching the hero are removed, each starting an explosion where it was.
     fn explode_dye_packs_on_hero(&mut self) {
-        let Some(hero) = self
-            .bodies
-            .iter()
-            .find(|b| matches!(b.behavior, Behavior::Hero { .. }))
-        else {
+        let Some(hero) = self.hero() else {
             return;
         };
-        let (hero_shape, hero_pos) = (hero.shape, hero.pos);
+        let (hero_shape, hero_pos) = (self.bodies[hero].shape, self.bodies[hero].pos);
         let hits: Vec<BodyKey> = self
-            .bodies
+            .behaving
             .iter()
+            .map(|&i| &self.bodies[i as usize])
             .filter(|b| matches!(b.behavior, Behavior::DyePack { .. }))
             .filter(|b| collide(&hero_shape, hero_pos, &b.shape, b.pos).is_some())
             .map(|b| b.key)
@@ -942,6 +980,17 @@ impl World {
         ActionError::UnknownPreset {
             name: name.to_string(),
             known: self.presets.names().collect::<Vec<_>>().join(", "),
+        }
+    }
+}
+
+/// Adds the bodies of `pairs` that are flagged collided to `flagged`.
+fn flag_pairs(bodies: &[Body], pairs: &[(u32, u32)], flagged: &mut Vec<u32>) {
+    for &(i, j) in pairs {
+        for k in [i, j] {
+            if bodies[k as usize].collided {
+                flagged.push(k);
+            }
         }
     }
 }

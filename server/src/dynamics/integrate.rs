@@ -16,10 +16,15 @@ pub fn acceleration(body: &Body, config: &WorldConfig) -> DVec2 {
     }
 }
 
-/// Advances every dynamic body by a step of `dt` with the configured integrator. Static
-/// bodies (mass 0) are never moved, whatever velocity they were given.
-pub fn integrate_bodies(bodies: &mut [Body], config: &WorldConfig, dt: f64) {
-    for body in bodies.iter_mut().filter(|b| !b.is_static()) {
+/// Advances the bodies listed in `movers` (the dynamic ones) by a step of `dt` with the
+/// configured integrator. Static bodies (mass 0) are never moved, whatever velocity they
+/// were given.
+pub fn integrate_bodies(bodies: &mut [Body], movers: &[u32], config: &WorldConfig, dt: f64) {
+    for &i in movers {
+        let body = &mut bodies[i as usize];
+        if body.is_static() {
+            continue;
+        }
         let a = acceleration(body, config);
         match config.integrator {
             Integrator::Symplectic => {
@@ -35,8 +40,12 @@ pub fn integrate_bodies(bodies: &mut [Body], config: &WorldConfig, dt: f64) {
 }
 
 /// The first half of a semi-implicit step, for the impulse solver: `v += a dt`.
-pub fn integrate_velocities(bodies: &mut [Body], config: &WorldConfig, dt: f64) {
-    for body in bodies.iter_mut().filter(|b| !b.is_static()) {
+pub fn integrate_velocities(bodies: &mut [Body], movers: &[u32], config: &WorldConfig, dt: f64) {
+    for &i in movers {
+        let body = &mut bodies[i as usize];
+        if body.is_static() {
+            continue;
+        }
         body.vel += acceleration(body, config) * dt;
     }
 }
@@ -47,6 +56,12 @@ mod tests {
     use crate::behavior::Behavior;
     use crate::dynamics::body::BodyKey;
     use crate::geometry::Shape;
+
+    /// Integrates every body of `bodies`.
+    fn integrate_bodies(bodies: &mut [Body], config: &WorldConfig, dt: f64) {
+        let all: Vec<u32> = (0..bodies.len() as u32).collect();
+        super::integrate_bodies(bodies, &all, config, dt);
+    }
 
     fn ball(inv_mass: f64) -> Body {
         Body {
