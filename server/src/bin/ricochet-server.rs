@@ -285,7 +285,8 @@ fn bench(levels: u32, steps: u64, only: Option<&str>, csv: Option<&Path>) -> Res
             );
         }
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create {}", dir.display()))?;
         }
         std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))?;
     }

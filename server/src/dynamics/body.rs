@@ -164,6 +164,25 @@ impl Body {
         }
     }
 
+    /// A body with the chapter's defaults (restitution 0.8, friction 0.3), for tests.
+    #[cfg(test)]
+    pub(crate) fn for_test(shape: Shape, pos: DVec2, vel: DVec2, inv_mass: f64) -> Body {
+        Body {
+            pos,
+            vel,
+            shape,
+            inv_mass,
+            restitution: 0.8,
+            friction: 0.3,
+            collided: false,
+            gravity: None,
+            group: 0,
+            key: BodyKey(0),
+            behavior: Behavior::None,
+            id: String::new(),
+        }
+    }
+
     /// Kinetic energy `m v² / 2` (0 for a static body).
     pub fn kinetic_energy(&self) -> f64 {
         0.5 * self.mass() * self.vel.length_squared()

@@ -139,27 +139,12 @@ pub fn sweep_pairs(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::behavior::Behavior;
-    use crate::dynamics::body::BodyKey;
     use crate::geometry::Shape;
     use glam::DVec2;
     use proptest::prelude::*;
 
     fn body(x: f64, y: f64, w: f64, h: f64, inv_mass: f64) -> Body {
-        Body {
-            pos: DVec2::new(x, y),
-            vel: DVec2::ZERO,
-            shape: Shape::rect(w, h),
-            inv_mass,
-            restitution: 0.8,
-            friction: 0.3,
-            collided: false,
-            gravity: None,
-            group: 0,
-            key: BodyKey(0),
-            behavior: Behavior::None,
-            id: String::new(),
-        }
+        Body::for_test(Shape::rect(w, h), DVec2::new(x, y), DVec2::ZERO, inv_mass)
     }
 
     /// The pairs the all-pairs loop would find colliding, in its order.

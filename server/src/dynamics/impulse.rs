@@ -243,23 +243,14 @@ fn apply(bodies: &mut [Body], c: &Contact, impulse: DVec2) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::behavior::Behavior;
     use crate::geometry::Shape;
 
     fn body(key: u32, pos: DVec2, vel: DVec2, inv_mass: f64) -> Body {
         Body {
-            pos,
-            vel,
-            shape: Shape::rect(1.0, 1.0),
-            inv_mass,
+            key: BodyKey(key),
             restitution: 0.5,
             friction: 0.5,
-            collided: false,
-            gravity: None,
-            group: 0,
-            key: BodyKey(key),
-            behavior: Behavior::None,
-            id: String::new(),
+            ..Body::for_test(Shape::rect(1.0, 1.0), pos, vel, inv_mass)
         }
     }
 

@@ -53,8 +53,6 @@ pub fn integrate_velocities(bodies: &mut [Body], movers: &[u32], config: &WorldC
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::behavior::Behavior;
-    use crate::dynamics::body::BodyKey;
     use crate::geometry::Shape;
 
     /// Integrates every body of `bodies`.
@@ -64,20 +62,12 @@ mod tests {
     }
 
     fn ball(inv_mass: f64) -> Body {
-        Body {
-            pos: DVec2::new(0.0, 100.0),
-            vel: DVec2::ZERO,
-            shape: Shape::circle(1.0),
+        Body::for_test(
+            Shape::circle(1.0),
+            DVec2::new(0.0, 100.0),
+            DVec2::ZERO,
             inv_mass,
-            restitution: 0.8,
-            friction: 0.3,
-            collided: false,
-            gravity: None,
-            group: 0,
-            key: BodyKey(0),
-            behavior: Behavior::None,
-            id: "ball".into(),
-        }
+        )
     }
 
     /// Symplectic Euler from rest under constant `g`: v_n = n g dt and

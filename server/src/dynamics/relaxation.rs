@@ -209,25 +209,10 @@ pub fn apply_friction(normal: DVec2, vel: &mut DVec2, friction: f64, inv_mass: f
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::behavior::Behavior;
-    use crate::dynamics::body::BodyKey;
     use crate::geometry::Shape;
 
     fn body(shape: Shape, pos: DVec2, vel: DVec2, inv_mass: f64) -> Body {
-        Body {
-            pos,
-            vel,
-            shape,
-            inv_mass,
-            restitution: 0.8,
-            friction: 0.3,
-            collided: false,
-            gravity: None,
-            group: 0,
-            key: BodyKey(0),
-            behavior: Behavior::None,
-            id: String::new(),
-        }
+        Body::for_test(shape, pos, vel, inv_mass)
     }
 
     #[test]
