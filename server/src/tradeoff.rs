@@ -451,3 +451,53 @@ pub fn chart(cells: &[Cell], path: &std::path::Path) -> anyhow::Result<()> {
     root.present()?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cell(scene: &'static str, ms: f64, error: f64) -> Cell {
+        Cell {
+            scene,
+            setting: String::new(),
+            ms_per_step: ms,
+            error,
+            error_name: "",
+            deepest_penetration: 0.0,
+            mean_penetration: 0.0,
+            energy_drift: 0.0,
+            nan: false,
+        }
+    }
+
+    #[test]
+    fn the_projectiles_error_is_symplectic_eulers_lag() {
+        // Symplectic Euler from v0 under g: p_n = p0 + v0 t + g dt² n(n+1)/2, so the error
+        // against p0 + v0 t + g t²/2 is |g| dt t / 2: 10 x (1/60) x 2 / 2 = 1/6 after 2 s.
+        let setting = &settings()[1];
+        let c = measure("projectile", 120, projectile, "", setting);
+        assert!((c.error - 1.0 / 6.0).abs() < 1e-6, "{}", c.error);
+        let sub4 = settings()
+            .into_iter()
+            .find(|s| s.config.substeps == 4 && s.config.solver == Solver::Relaxation)
+            .unwrap();
+        let c = measure("projectile", 120, projectile, "", &sub4);
+        assert!(
+            (c.error - 1.0 / 24.0).abs() < 1e-6,
+            "4 sub-steps quarter the lag: {}",
+            c.error
+        );
+    }
+
+    #[test]
+    fn the_front_keeps_only_settings_nothing_beats_on_both() {
+        let cells = vec![
+            cell("s", 1.0, 1.0),
+            cell("s", 2.0, 0.5),
+            cell("s", 3.0, 0.7),
+            cell("t", 0.1, 9.0),
+        ];
+        let front: Vec<bool> = cells.iter().map(|c| on_front(c, &cells)).collect();
+        assert_eq!(front, [true, true, false, true]);
+    }
+}
