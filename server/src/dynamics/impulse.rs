@@ -23,6 +23,11 @@ use glam::DVec2;
 use super::body::{Body, BodyKey};
 use crate::geometry::separation;
 
+/// The fastest the position bias pushes overlapping bodies apart, in body sizes per
+/// second: a deep overlap (a spawn on top of another body, coincident centres) is undone
+/// over a few frames instead of launching the bodies.
+pub const MAX_PUSH_OUT: f64 = 2.0;
+
 /// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
 
@@ -55,6 +60,8 @@ struct Contact {
     bounce: f64,
     start_a: DVec2,
     start_b: DVec2,
+    /// Cap of the position bias velocity.
+    max_push: f64,
     normal_impulse: f64,
     tangent_impulse: f64,
 }
@@ -147,6 +154,7 @@ pub fn solve_frame(
             bounce,
             start_a: a.pos,
             start_b: b.pos,
+            max_push: MAX_PUSH_OUT * size,
             normal_impulse: 0.0,
             tangent_impulse: 0.0,
         };
@@ -188,7 +196,7 @@ pub fn solve_frame(
                     // Speculative: close the gap within this sub-step, no further.
                     -gap * inv_h
                 } else {
-                    params.baumgarte * inv_h * (-gap - c.slop).max(0.0)
+                    (params.baumgarte * inv_h * (-gap - c.slop).max(0.0)).min(c.max_push)
                 };
                 let target = target.max(c.bounce);
                 // Normal: drive the normal velocity to its target, never pulling.
