@@ -122,6 +122,8 @@ pub struct World {
     /// Bodies flagged collided in the last step, to clear at the next.
     flagged: Vec<u32>,
     contact_cache: ContactCache,
+    /// Every body's id, to refuse duplicates without a scan.
+    ids: std::collections::HashSet<String>,
 }
 
 impl World {
@@ -152,6 +154,7 @@ impl World {
             behaving: Vec::new(),
             flagged: Vec::new(),
             contact_cache: ContactCache::default(),
+            ids: Default::default(),
         }
     }
 
@@ -254,9 +257,10 @@ impl World {
             id: def.id.clone(),
             source,
         })?;
-        if self.body(&def.id).is_some() {
+        if self.ids.contains(&def.id) {
             return Err(WorldError::DuplicateId(def.id));
         }
+        self.ids.insert(def.id.clone());
         let group = self.group_or_insert(&def.group);
         let key = BodyKey(self.next_key);
         self.next_key += 1;
@@ -345,7 +349,7 @@ impl World {
         loop {
             self.spawned += 1;
             let id = format!("{prefix}-{}", self.spawned);
-            if self.body(&id).is_none() {
+            if !self.ids.contains(&id) {
                 return id;
             }
         }
@@ -357,6 +361,9 @@ impl World {
             self.statics_revision += 1;
         }
         let before = self.bodies.len();
+        for b in self.bodies.iter().filter(|b| remove(b)) {
+            self.ids.remove(&b.id);
+        }
         self.bodies.retain(|b| !remove(b));
         if self.bodies.len() != before {
             self.layout_revision += 1;

@@ -66,10 +66,34 @@ struct Contact {
     tangent_impulse: f64,
 }
 
+/// A fast hash of small integer keys (the multiply-rotate of rustc's FxHasher). Only
+/// lookups use it, never iteration order, so results stay deterministic.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct KeyHasher(u64);
+
+impl std::hash::Hasher for KeyHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u32(&mut self, n: u32) {
+        self.write_u64(n as u64);
+    }
+    fn write_u64(&mut self, n: u64) {
+        self.0 = (self.0.rotate_left(5) ^ n).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+type KeyMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<KeyHasher>>;
+
 /// Impulses of the last step, for warm starting.
 #[derive(Clone, Debug, Default)]
 pub struct ContactCache {
-    impulses: HashMap<(BodyKey, BodyKey), (DVec2, f64, f64)>,
+    impulses: KeyMap<(BodyKey, BodyKey), (DVec2, f64, f64)>,
 }
 
 impl ContactCache {
