@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, Context, Result};
 use zenoh::handlers::{FifoChannelHandler, RingChannel, RingChannelHandler};
 use zenoh::pubsub::Subscriber;
 use zenoh::sample::Sample;
@@ -175,28 +175,39 @@ impl Client {
 
     /// Sends raw bytes as a request and waits for the reply.
     pub fn request_raw(&self, bytes: Vec<u8>, timeout: Duration) -> Result<Reply> {
-        let replies = self
-            .session
-            .get(&self.keys.rpc)
-            .payload(bytes)
-            .timeout(timeout)
-            .wait()
-            .map_err(|e| anyhow!("request: {e}"))?;
-        let reply = replies
-            .recv_timeout(timeout + Duration::from_millis(500))
-            .map_err(|e| anyhow!("request: {e}"))?
-            .ok_or_else(|| {
-                anyhow!(
-                    "no reply from world `{}` within {timeout:?}: is its server up?",
-                    self.keys.world
-                )
-            })?;
-        let payload = match reply.result() {
-            Ok(sample) => sample.payload().to_bytes().into_owned(),
-            Err(err) => err.payload().to_bytes().into_owned(),
+        let payload = match self.first_reply(&self.keys.rpc, Some(bytes), timeout)? {
+            Ok(payload) | Err(payload) => payload,
         };
         serde_json::from_slice(&payload)
             .with_context(|| format!("unreadable reply: {}", String::from_utf8_lossy(&payload)))
+    }
+
+    /// Queries `key` (with `payload`) and waits for the first reply: `Ok` with its payload,
+    /// or `Err` with the payload of an error reply.
+    fn first_reply(
+        &self,
+        key: &str,
+        payload: Option<Vec<u8>>,
+        timeout: Duration,
+    ) -> Result<Result<Vec<u8>, Vec<u8>>> {
+        let mut get = self.session.get(key).timeout(timeout);
+        if let Some(bytes) = payload {
+            get = get.payload(bytes);
+        }
+        let replies = get.wait().map_err(|e| anyhow!("{key}: {e}"))?;
+        let reply = replies
+            .recv_timeout(timeout + Duration::from_millis(500))
+            .map_err(|e| anyhow!("{key}: {e}"))?
+            .ok_or_else(|| {
+                anyhow!(
+                    "no answer on {key} within {timeout:?}: is the server of world `{}` up?",
+                    self.keys.world
+                )
+            })?;
+        Ok(match reply.result() {
+            Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+            Err(err) => Err(err.payload().to_bytes().into_owned()),
+        })
     }
 
     /// Every frame from now on, in order.
@@ -262,28 +273,8 @@ impl Client {
     }
 
     fn fetch(&self, key: &str, timeout: Duration) -> Result<Vec<u8>> {
-        let replies = self
-            .session
-            .get(key)
-            .timeout(timeout)
-            .wait()
-            .map_err(|e| anyhow!("{key}: {e}"))?;
-        let reply = replies
-            .recv_timeout(timeout + Duration::from_millis(500))
-            .map_err(|e| anyhow!("{key}: {e}"))?
-            .ok_or_else(|| {
-                anyhow!(
-                    "no answer on {key} within {timeout:?}: is the server of world `{}` up?",
-                    self.keys.world
-                )
-            })?;
-        match reply.result() {
-            Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
-            Err(err) => bail!(
-                "{key} refused: {}",
-                String::from_utf8_lossy(&err.payload().to_bytes())
-            ),
-        }
+        self.first_reply(key, None, timeout)?
+            .map_err(|err| anyhow!("{key} refused: {}", String::from_utf8_lossy(&err)))
     }
 }
 
