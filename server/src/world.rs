@@ -17,6 +17,7 @@ use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
 use crate::dynamics::broad_phase::{
     grid_pairs, sweep_pairs, BroadPhase, StaticGrid, SweepBuffers, STATIC_GRID_MIN_MEMBERS,
 };
+use crate::dynamics::ccd;
 use crate::dynamics::config::Solver;
 use crate::dynamics::config::WorldConfig;
 use crate::dynamics::impulse::{self, ContactCache, ImpulseParams};
@@ -411,6 +412,7 @@ impl World {
         let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
         if chapter_order {
             integrate_bodies(&mut self.bodies, &self.movers, &self.config, dt);
+            self.sweep_fast_bodies(dt);
             self.explode_dye_packs_on_hero();
             self.move_particles();
             self.run_interactions(&mut stats, true, true, dt);
@@ -421,6 +423,7 @@ impl World {
                     let h = dt / n as f64;
                     for _ in 0..n {
                         integrate_bodies(&mut self.bodies, &self.movers, &self.config, h);
+                        self.sweep_fast_bodies(h);
                         self.run_interactions(&mut stats, true, false, h);
                     }
                 }
@@ -433,6 +436,42 @@ impl World {
         stats.kinetic_energy = self.kinetic_energy();
         self.stats = stats;
         self.frame += 1;
+    }
+
+    /// With `ccd`, stops fast bodies at the first shape of their interactions they would
+    /// have passed through this step.
+    fn sweep_fast_bodies(&mut self, dt: f64) {
+        if !self.config.ccd {
+            return;
+        }
+        let (groups, interactions, bodies) = (&self.groups, &self.interactions, &mut self.bodies);
+        let group_of: Vec<GroupId> = self
+            .movers
+            .iter()
+            .map(|&i| bodies[i as usize].group)
+            .collect();
+        let movers = &self.movers;
+        let stopped = ccd::sweep_fast_bodies(bodies, movers, dt, |i| {
+            let g = group_of[movers.iter().position(|&m| m == i).expect("a mover")];
+            let mut out = Vec::new();
+            for inter in interactions.iter().filter(|it| it.resolve) {
+                match (inter.a, inter.b) {
+                    (Side::Group(a), Side::Group(b)) if a == g => {
+                        out.extend_from_slice(&groups[b as usize].members)
+                    }
+                    (Side::Group(a), Side::Group(b)) if b == g => {
+                        out.extend_from_slice(&groups[a as usize].members)
+                    }
+                    _ => {}
+                }
+            }
+            out
+        });
+        if stopped > 0 {
+            let bodies = &self.bodies;
+            self.flagged
+                .extend(self.movers.iter().filter(|&&i| bodies[i as usize].collided));
+        }
     }
 
     /// Moves every particle, removing the expired, then emits.

@@ -176,12 +176,22 @@ fn zero_mass_pairs_never_move() {
 }
 
 #[test]
-fn a_fast_small_body_is_stopped_by_a_thin_wall_with_speculative_contacts() {
+fn a_fast_small_body_is_stopped_by_a_thin_wall_with_ccd_or_speculative_contacts() {
     // The chapter's discrete steps tunnel: 5 units a step through a 0.05 wall.
     let (w, _) = run(load("tunnelling.toml", &[]), 60);
     assert!(
         w.body("bullet").unwrap().pos.x > 10.0,
         "the chapter's solver does tunnel"
+    );
+    // Continuous collision for the chapter's solver catches it.
+    let (w, r) = run(load("tunnelling.toml", &["ccd=true"]), 60);
+    assert!(!r.nan);
+    let bullet = w.body("bullet").unwrap();
+    assert!(
+        bullet.pos.x < 10.0 && bullet.vel.x < 0.0,
+        "ccd: at {} moving {}",
+        bullet.pos.x,
+        bullet.vel.x
     );
     // The impulse solver's speculative contacts catch it.
     let (w, r) = run(load("tunnelling.toml", &["solver=\"impulses\""]), 60);

@@ -91,6 +91,11 @@ pub struct WorldConfig {
     pub baumgarte: f64,
     /// Penetration the impulse solver leaves alone, relative to the smaller body's size.
     pub slop: f64,
+    /// Continuous collision for the relaxation solver: a body that moves more than half
+    /// its size in a step is swept against the shapes of its interactions and stopped at
+    /// the first it would pass through (the impulse solver's speculative contacts already
+    /// do this).
+    pub ccd: bool,
 }
 
 impl Default for WorldConfig {
@@ -112,6 +117,7 @@ impl Default for WorldConfig {
             warm_starting: true,
             baumgarte: 0.2,
             slop: 0.001,
+            ccd: false,
         }
     }
 }
@@ -151,6 +157,7 @@ impl WorldConfig {
         "warm_starting",
         "baumgarte",
         "slop",
+        "ccd",
     ];
 
     /// The chapter's setter: a rate outside (0, 1) becomes 0.8. Non-finite is refused.
@@ -276,6 +283,7 @@ impl WorldConfig {
             "warm_starting" => next.warm_starting = parsed.warm_starting,
             "baumgarte" => next.baumgarte = parsed.baumgarte,
             "slop" => next.slop = parsed.slop,
+            "ccd" => next.ccd = parsed.ccd,
             _ => unreachable!("checked against NAMES"),
         }
         next.validate()?;

@@ -2,6 +2,7 @@
 
 pub mod body;
 pub mod broad_phase;
+pub mod ccd;
 pub mod config;
 pub mod impulse;
 pub mod integrate;
