@@ -73,7 +73,8 @@ enum Command {
     /// With no flags it listens on tcp/127.0.0.1:7447 and clients on the same machine
     /// connect there by default. Commands arrive on ricochet/<world>/cmd (fire and forget)
     /// and ricochet/<world>/rpc (request, reply); frames leave on ricochet/<world>/frame,
-    /// the statics snapshot on ricochet/<world>/snapshot (also a queryable), one event per
+    /// the statics snapshot on ricochet/<world>/snapshot (also a queryable), the dynamic
+    /// state for late joiners on the ricochet/<world>/state queryable, one event per
     /// handled command on ricochet/<world>/event; a liveliness token
     /// ricochet/<world>/alive says the world is up.
     Run {
@@ -98,9 +99,11 @@ enum Command {
         #[arg(long)]
         max_frames: Option<u64>,
     },
-    /// Measure the engine: the large pyramid under each solver setting, particles against
-    /// shapes, free particles, and a hero among few or many static platforms. Prints a
-    /// table (and CSV with --csv). Use a release build.
+    /// Measure the engine's speed (figures, not pass/fail).
+    ///
+    /// The large pyramid under each solver setting, particles against shapes, free
+    /// particles, and a hero among few or many static platforms. Prints a table (and CSV
+    /// with --csv). Use a release build.
     Bench {
         /// Levels of the pyramid (100: the brief's 5050 boxes).
         #[arg(long, default_value_t = 100)]
@@ -115,16 +118,18 @@ enum Command {
         #[arg(long)]
         csv: Option<PathBuf>,
     },
-    /// Run the matrix of scenes x solver settings and write what each setting costs and
-    /// buys: DIR/tradeoff.csv and DIR/tradeoff.png (time against error, the front in red).
-    /// Use a release build.
+    /// Measure what each solver setting costs and buys.
+    ///
+    /// Runs the matrix of scenes x solver settings and writes DIR/tradeoff.csv and
+    /// DIR/tradeoff.png (time against error, the front in red). Use a release build.
     Tradeoff {
         /// Where to write the report.
         #[arg(long, default_value = "docs/tradeoff")]
         out: PathBuf,
     },
-    /// Run a zenoh router: servers and clients on several hosts connect to it
-    /// (`--mode client --connect tcp/<router>:7447`) and meet there.
+    /// Run a zenoh router where servers and clients on several hosts meet.
+    ///
+    /// They connect to it with `--mode client --connect tcp/<router>:7447`.
     Router {
         #[command(flatten)]
         network: NetworkArgs,
