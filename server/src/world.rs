@@ -23,6 +23,7 @@ use crate::dynamics::config::WorldConfig;
 use crate::dynamics::impulse::{self, ContactCache, ImpulseParams};
 use crate::dynamics::integrate::{integrate_bodies, integrate_velocities};
 use crate::dynamics::relaxation::{self, RelaxationParams};
+use crate::dynamics::sleep;
 use crate::geometry::{collide, Shape};
 use crate::particles::system::{ParticleShape, ShapeGrid};
 use crate::particles::{Emitter, ParticleDef, Particles, PresetLibrary};
@@ -69,6 +70,8 @@ pub struct StepStats {
     pub particle_contacts: u64,
     /// Kinetic energy of the rigid bodies after the step.
     pub kinetic_energy: f64,
+    /// Bodies asleep after the step.
+    pub sleeping: u64,
 }
 
 /// Why a body or particle could not be added.
@@ -125,6 +128,8 @@ pub struct World {
     contact_cache: ContactCache,
     /// Every body's id, to refuse duplicates without a scan.
     ids: std::collections::HashSet<String>,
+    /// Bodies asleep after the last step.
+    sleeping: u64,
 }
 
 impl World {
@@ -156,6 +161,7 @@ impl World {
             flagged: Vec::new(),
             contact_cache: ContactCache::default(),
             ids: Default::default(),
+            sleeping: 0,
         }
     }
 
@@ -283,6 +289,8 @@ impl World {
             key,
             behavior: def.behavior,
             id: def.id,
+            rest_time: 0.0,
+            asleep: None,
         });
         self.groups[group as usize].members.push(index);
         let body = &self.bodies[index as usize];
@@ -356,8 +364,12 @@ impl World {
         }
     }
 
-    /// Removes the bodies for which `remove` is true, keeping the order of the rest.
+    /// Removes the bodies for which `remove` is true, keeping the order of the rest (and
+    /// wakes the world: a removed body may have held others up).
     fn remove_bodies(&mut self, remove: impl Fn(&Body) -> bool) {
+        if self.bodies.iter().any(&remove) {
+            self.wake_all();
+        }
         if self.bodies.iter().any(|b| b.is_static() && remove(b)) {
             self.statics_revision += 1;
         }
@@ -407,6 +419,12 @@ impl World {
             self.bodies[i as usize].collided = false;
         }
         self.flagged.clear();
+        if !self.config.sleeping {
+            self.wake_all();
+        }
+        if self.sleeping > 0 {
+            sleep::freeze(&mut self.bodies, &self.movers);
+        }
         self.run_behaviors();
         let dt = self.config.dt;
         let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
@@ -433,6 +451,13 @@ impl World {
             self.move_particles();
             self.run_interactions(&mut stats, false, true, dt);
         }
+        if self.sleeping > 0 {
+            sleep::thaw(&mut self.bodies, &self.movers);
+        }
+        if self.config.sleeping {
+            self.update_sleep();
+        }
+        stats.sleeping = self.sleeping;
         stats.kinetic_energy = self.kinetic_energy();
         self.stats = stats;
         self.frame += 1;
@@ -472,6 +497,33 @@ impl World {
             self.flagged
                 .extend(self.movers.iter().filter(|&&i| bodies[i as usize].collided));
         }
+    }
+
+    /// Joins touching bodies into islands and puts resting islands to sleep.
+    fn update_sleep(&mut self) {
+        let dt = self.config.dt;
+        let mut pairs = Vec::new();
+        let mut some = Vec::new();
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
+            if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
+                self.candidates(a, b, dt, &mut some);
+                pairs.extend_from_slice(&some);
+            }
+        }
+        let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
+        self.sleeping = sleep::update(&mut self.bodies, &self.movers, &pairs, dt, speed, delay);
+    }
+
+    /// Wakes every sleeping body.
+    fn wake_all(&mut self) {
+        if self.sleeping == 0 {
+            return;
+        }
+        for &i in &self.movers {
+            sleep::wake(&mut self.bodies[i as usize]);
+        }
+        self.sleeping = 0;
     }
 
     /// Moves every particle, removing the expired, then emits.
@@ -613,7 +665,9 @@ impl World {
         if self.static_grids[g].0 != self.layout_revision {
             let members = &self.groups[g].members;
             let eligible = members.len() > STATIC_GRID_MIN_MEMBERS
-                && members.iter().all(|&i| self.bodies[i as usize].is_static());
+                && members.iter().all(|&i| {
+                    self.bodies[i as usize].is_static() && self.bodies[i as usize].asleep.is_none()
+                });
             let grid =
                 eligible.then(|| StaticGrid::build(&self.bodies, members, self.layout_revision));
             self.static_grids[g] = (self.layout_revision, grid);
@@ -803,6 +857,16 @@ impl World {
 
     /// Applies an action between steps. A refused action changes nothing.
     pub fn apply(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
+        // Anything that moves bodies or changes the world's parameters wakes it.
+        if !matches!(
+            action,
+            Action::Press { .. }
+                | Action::Release { .. }
+                | Action::Select { .. }
+                | Action::Deselect
+        ) {
+            self.wake_all();
+        }
         let point = |field: &'static str, p: [f64; 2]| -> Result<DVec2, ActionError> {
             let v = DVec2::from(p);
             if v.is_finite() && v.abs().max_element() <= crate::dynamics::body::MAX_COORDINATE {

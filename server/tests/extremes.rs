@@ -244,3 +244,47 @@ fn a_hundred_thousand_particles_stay_finite_and_expire() {
     assert_eq!(w.particles().len(), 0, "fire lives at most 230 updates");
     assert!(w.emitters().is_empty());
 }
+
+#[test]
+fn a_resting_stack_sleeps_and_wakes_when_hit() {
+    let mut w = load(
+        "stack-20.toml",
+        &["solver=\"impulses\"", "substeps=2", "sleeping=true"],
+    );
+    w.step_n(300);
+    assert_eq!(w.stats().sleeping, 20, "the whole stack sleeps");
+    let asleep: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
+    w.step_n(300);
+    let still: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
+    assert_eq!(asleep, still, "sleeping bodies do not move at all");
+    // A box dropped on top wakes the stack, which then settles and sleeps again.
+    w.add_body(ricochet::dynamics::BodyDef {
+        id: "falling".into(),
+        group: "boxes".into(),
+        shape: ricochet::geometry::Shape::rect(1.0, 1.0),
+        pos: glam::DVec2::new(0.0, 25.0),
+        restitution: 0.0,
+        ..Default::default()
+    })
+    .unwrap();
+    let mut woke = false;
+    for _ in 0..120 {
+        w.step();
+        woke |= w.stats().sleeping < 20;
+    }
+    assert!(woke, "the impact woke the stack");
+    w.step_n(600);
+    assert_eq!(w.stats().sleeping, 21, "all asleep again");
+    let top = w.body("falling").unwrap().pos.y;
+    assert!(
+        (top - 20.5).abs() < 0.01,
+        "the new box rests on the stack at {top}"
+    );
+}
+
+#[test]
+fn without_sleeping_nothing_sleeps() {
+    let (w, _) = run(load("stack-20.toml", STABLE), 600);
+    assert_eq!(w.stats().sleeping, 0);
+    assert!(w.bodies().iter().all(|b| b.asleep.is_none()));
+}

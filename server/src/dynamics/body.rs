@@ -149,6 +149,17 @@ pub struct Body {
     pub key: BodyKey,
     pub behavior: Behavior,
     pub id: String,
+    /// Seconds the body has moved slower than the world's `sleep_speed`.
+    pub rest_time: f64,
+    /// Set while the body sleeps (see [`crate::dynamics::sleep`]).
+    pub asleep: Option<Sleeper>,
+}
+
+/// What a sleeping body keeps: during a step the solvers see it as static.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sleeper {
+    /// Its inverse mass, restored after each step.
+    pub inv_mass: f64,
 }
 
 impl Body {
@@ -180,6 +191,8 @@ impl Body {
             key: BodyKey(0),
             behavior: Behavior::None,
             id: String::new(),
+            rest_time: 0.0,
+            asleep: None,
         }
     }
 

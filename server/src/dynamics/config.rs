@@ -96,6 +96,14 @@ pub struct WorldConfig {
     /// the first it would pass through (the impulse solver's speculative contacts already
     /// do this).
     pub ccd: bool,
+    /// Let bodies at rest sleep: an island of touching dynamic bodies that all moved slower
+    /// than `sleep_speed` for `sleep_delay` seconds stops being integrated and is seen as
+    /// static by the solvers until something moving touches it.
+    pub sleeping: bool,
+    /// Speed below which a body counts as at rest (units/s).
+    pub sleep_speed: f64,
+    /// Seconds at rest before an island sleeps.
+    pub sleep_delay: f64,
 }
 
 impl Default for WorldConfig {
@@ -118,6 +126,9 @@ impl Default for WorldConfig {
             baumgarte: 0.2,
             slop: 0.001,
             ccd: false,
+            sleeping: false,
+            sleep_speed: 0.05,
+            sleep_delay: 0.5,
         }
     }
 }
@@ -158,6 +169,9 @@ impl WorldConfig {
         "baumgarte",
         "slop",
         "ccd",
+        "sleeping",
+        "sleep_speed",
+        "sleep_delay",
     ];
 
     /// The chapter's setter: a rate outside (0, 1) becomes 0.8. Non-finite is refused.
@@ -229,6 +243,17 @@ impl WorldConfig {
                 format!("{} must be in [0, 1]", self.baumgarte),
             ));
         }
+        for (name, v) in [
+            ("sleep_speed", self.sleep_speed),
+            ("sleep_delay", self.sleep_delay),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(invalid(
+                    name,
+                    format!("{v} must be a finite number, 0 or above"),
+                ));
+            }
+        }
         if !(0.0..=1.0).contains(&self.slop) {
             return Err(invalid("slop", format!("{} must be in [0, 1]", self.slop)));
         }
@@ -284,6 +309,9 @@ impl WorldConfig {
             "baumgarte" => next.baumgarte = parsed.baumgarte,
             "slop" => next.slop = parsed.slop,
             "ccd" => next.ccd = parsed.ccd,
+            "sleeping" => next.sleeping = parsed.sleeping,
+            "sleep_speed" => next.sleep_speed = parsed.sleep_speed,
+            "sleep_delay" => next.sleep_delay = parsed.sleep_delay,
             _ => unreachable!("checked against NAMES"),
         }
         next.validate()?;

@@ -28,6 +28,11 @@ use crate::geometry::separation;
 /// over a few frames instead of launching the bodies.
 pub const MAX_PUSH_OUT: f64 = 2.0;
 
+/// A contact found with a larger gap than this (in body sizes) may close it and no more
+/// (a falling body lands instead of stopping short); a nearer one holds, which keeps
+/// stacks of touching bodies still.
+pub const SPECULATIVE_GAP: f64 = 0.02;
+
 /// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
 
@@ -62,6 +67,8 @@ struct Contact {
     start_b: DVec2,
     /// Cap of the position bias velocity.
     max_push: f64,
+    /// Found apart (beyond the slop): the bodies may close the gap, no more.
+    speculative: bool,
     normal_impulse: f64,
     tangent_impulse: f64,
 }
@@ -179,6 +186,7 @@ pub fn solve_frame(
             start_a: a.pos,
             start_b: b.pos,
             max_push: MAX_PUSH_OUT * size,
+            speculative: gap > SPECULATIVE_GAP * size,
             normal_impulse: 0.0,
             tangent_impulse: 0.0,
         };
@@ -216,13 +224,16 @@ pub fn solve_frame(
                 // Separation now: the frame's start plus how far the bodies moved since.
                 let gap = c.gap
                     + ((bodies[b].pos - c.start_b) - (bodies[a].pos - c.start_a)).dot(c.normal);
-                let target = if gap > 0.0 {
-                    // Speculative: close the gap within this sub-step, no further.
+                let target = if c.speculative && gap > 0.0 {
+                    // Apart when found: close the gap within this sub-step, no further
+                    // (the bounce comes once they touch).
                     -gap * inv_h
                 } else {
-                    (params.baumgarte * inv_h * (-gap - c.slop).max(0.0)).min(c.max_push)
+                    // Touching: hold, push out what exceeds the slop, bounce.
+                    (params.baumgarte * inv_h * (-gap - c.slop).max(0.0))
+                        .min(c.max_push)
+                        .max(c.bounce)
                 };
-                let target = target.max(c.bounce);
                 // Normal: drive the normal velocity to its target, never pulling.
                 let vn = dv.dot(c.normal);
                 let total = (c.normal_impulse + c.mass * (target - vn)).max(0.0);

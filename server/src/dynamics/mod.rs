@@ -7,6 +7,7 @@ pub mod config;
 pub mod impulse;
 pub mod integrate;
 pub mod relaxation;
+pub mod sleep;
 
 pub use body::{Body, BodyDef, BodyKey, GroupId};
 pub use broad_phase::BroadPhase;

@@ -1,0 +1,123 @@
+//! Sleeping of bodies at rest (`sleeping = true`; off by default).
+//!
+//! After each step, touching dynamic bodies are joined into islands. An island whose
+//! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds goes to sleep:
+//! velocities zeroed, no integration, and the solvers see its bodies as static (their
+//! inverse mass is set aside during a step). An island with a moving body in it (a body
+//! that hit a sleeper joins its island) wakes whole. Bodies driven by a behaviour (hero,
+//! minions, dye packs) never sleep; actions that move bodies or change the world's
+//! parameters wake everything.
+
+use super::body::{Body, Sleeper};
+use crate::behavior::Behavior;
+use crate::geometry::separation;
+
+/// Sleepers become static for the step: their inverse mass is set aside.
+pub fn freeze(bodies: &mut [Body], movers: &[u32]) {
+    for &i in movers {
+        let b = &mut bodies[i as usize];
+        if b.asleep.is_some() {
+            b.inv_mass = 0.0;
+            b.vel = glam::DVec2::ZERO;
+        }
+    }
+}
+
+/// After the step: sleepers get their inverse mass back.
+pub fn thaw(bodies: &mut [Body], movers: &[u32]) {
+    for &i in movers {
+        let b = &mut bodies[i as usize];
+        if let Some(s) = b.asleep {
+            b.inv_mass = s.inv_mass;
+        }
+    }
+}
+
+/// Wakes a body.
+pub fn wake(body: &mut Body) {
+    if let Some(s) = body.asleep.take() {
+        body.inv_mass = s.inv_mass;
+    }
+    body.rest_time = 0.0;
+}
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let p = parent[i as usize];
+        parent[i as usize] = parent[p as usize];
+        i = p;
+    }
+    i
+}
+
+/// Updates rest times and puts islands to sleep or wakes them. `pairs` are candidate
+/// pairs of the step (body indices); those touching join islands. Returns how many bodies
+/// sleep now.
+pub fn update(
+    bodies: &mut [Body],
+    movers: &[u32],
+    pairs: &[(u32, u32)],
+    dt: f64,
+    speed: f64,
+    delay: f64,
+) -> u64 {
+    for &i in movers {
+        let b = &mut bodies[i as usize];
+        if b.asleep.is_some() {
+            continue;
+        }
+        let may_sleep = matches!(b.behavior, Behavior::None | Behavior::DumbMinion);
+        b.rest_time = if may_sleep && b.vel.length() < speed {
+            b.rest_time + dt
+        } else {
+            0.0
+        };
+    }
+    let mut parent: Vec<u32> = (0..bodies.len() as u32).collect();
+    for &(i, j) in pairs {
+        let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
+        if a.is_static() || b.is_static() {
+            continue;
+        }
+        let size = a
+            .shape
+            .half_extents()
+            .min_element()
+            .min(b.shape.half_extents().min_element());
+        if separation(&a.shape, a.pos, &b.shape, b.pos).0 > 0.02 * size {
+            continue;
+        }
+        let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
+        if ri != rj {
+            parent[ri.max(rj) as usize] = ri.min(rj);
+        }
+    }
+    // An island rests when every body in it sleeps or has rested long enough.
+    let mut restless = vec![false; bodies.len()];
+    for &i in movers {
+        let b = &bodies[i as usize];
+        if b.asleep.is_none() && b.rest_time < delay {
+            let root = find(&mut parent, i);
+            restless[root as usize] = true;
+        }
+    }
+    let mut sleeping = 0;
+    for &i in movers {
+        let root = find(&mut parent, i);
+        let b = &mut bodies[i as usize];
+        if restless[root as usize] {
+            if b.asleep.is_some() {
+                wake(b);
+            }
+        } else {
+            if b.asleep.is_none() {
+                b.asleep = Some(Sleeper {
+                    inv_mass: b.inv_mass,
+                });
+                b.vel = glam::DVec2::ZERO;
+            }
+            sleeping += 1;
+        }
+    }
+    sleeping
+}
