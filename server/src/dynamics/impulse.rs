@@ -225,14 +225,11 @@ pub fn solve_frame(
                 let gap = c.gap
                     + ((bodies[b].pos - c.start_b) - (bodies[a].pos - c.start_a)).dot(c.normal);
                 let target = if c.speculative && gap > 0.0 {
-                    // Apart when found: close the gap within this sub-step, no further
-                    // (the bounce comes once they touch).
+                    // Apart when found: close the gap within this sub-step, no further.
                     -gap * inv_h
                 } else {
-                    // Touching: hold, push out what exceeds the slop, bounce.
-                    (params.baumgarte * inv_h * (-gap - c.slop).max(0.0))
-                        .min(c.max_push)
-                        .max(c.bounce)
+                    // Touching: hold, push out what exceeds the slop.
+                    (params.baumgarte * inv_h * (-gap - c.slop).max(0.0)).min(c.max_push)
                 };
                 // Normal: drive the normal velocity to its target, never pulling.
                 let vn = dv.dot(c.normal);
@@ -256,9 +253,18 @@ pub fn solve_frame(
             let body = &mut bodies[i as usize];
             body.pos += body.vel * h;
         }
-        // A bounce happens once.
+        // Restitution, once, for contacts that pushed: after the move, the normal velocity
+        // becomes the bounce of the approach speed the contact was found with (as Box2D
+        // applies it), so a contact that caught a body early still bounces it fully.
         for c in contacts.iter_mut() {
-            if c.normal_impulse > 0.0 {
+            if c.bounce > 0.0 && c.normal_impulse > 0.0 {
+                let (a, b) = (c.a as usize, c.b as usize);
+                let vn = (bodies[b].vel - bodies[a].vel).dot(c.normal);
+                let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
+                let p = c.normal * (total - c.normal_impulse);
+                c.normal_impulse = total;
+                bodies[a].vel -= p * c.inv_a;
+                bodies[b].vel += p * c.inv_b;
                 c.bounce = 0.0;
             }
         }
