@@ -282,38 +282,13 @@ impl WorldConfig {
             self.set_relaxation_iterations(count);
             return Ok(());
         }
-        let mut table = toml::Table::new();
+        // The current parameters with the one field replaced, read back through the same
+        // code as a scene's [world] table.
+        let mut table = toml::Table::try_from(&*self).map_err(|e| invalid(name, e.to_string()))?;
         table.insert(name.to_string(), value.clone());
-        // Deserialise the one field through the same code as a scene's [world] table.
-        let parsed: WorldConfig = toml::Value::Table(table)
+        let mut next: WorldConfig = toml::Value::Table(table)
             .try_into()
             .map_err(|e: toml::de::Error| invalid(name, e.message().to_string()))?;
-        let mut next = self.clone();
-        match name {
-            "gravity" => next.gravity = parsed.gravity,
-            "particle_gravity" => next.particle_gravity = parsed.particle_gravity,
-            "dt" => next.dt = parsed.dt,
-            "correction_rate" => next.correction_rate = parsed.correction_rate,
-            "seed" => next.seed = parsed.seed,
-            "integrator" => next.integrator = parsed.integrator,
-            "relaxation_iterations" => unreachable!("handled above"),
-            "mass_scaled_acceleration" => {
-                next.mass_scaled_acceleration = parsed.mass_scaled_acceleration
-            }
-            "bounds" => next.bounds = parsed.bounds,
-            "solver" => next.solver = parsed.solver,
-            "broad_phase" => next.broad_phase = parsed.broad_phase,
-            "substeps" => next.substeps = parsed.substeps,
-            "impulse_iterations" => next.impulse_iterations = parsed.impulse_iterations,
-            "warm_starting" => next.warm_starting = parsed.warm_starting,
-            "baumgarte" => next.baumgarte = parsed.baumgarte,
-            "slop" => next.slop = parsed.slop,
-            "ccd" => next.ccd = parsed.ccd,
-            "sleeping" => next.sleeping = parsed.sleeping,
-            "sleep_speed" => next.sleep_speed = parsed.sleep_speed,
-            "sleep_delay" => next.sleep_delay = parsed.sleep_delay,
-            _ => unreachable!("checked against NAMES"),
-        }
         next.validate()?;
         *self = next;
         Ok(())

@@ -244,9 +244,7 @@ pub fn solve_frame(
                 let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
                 let dt_imp = total_t - c.tangent_impulse;
                 c.tangent_impulse = total_t;
-                let p = c.normal * dn + t * dt_imp;
-                bodies[a].vel -= p * c.inv_a;
-                bodies[b].vel += p * c.inv_b;
+                apply(bodies, c, c.normal * dn + t * dt_imp);
             }
         }
         for &i in movers {
@@ -263,8 +261,7 @@ pub fn solve_frame(
                 let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
                 let p = c.normal * (total - c.normal_impulse);
                 c.normal_impulse = total;
-                bodies[a].vel -= p * c.inv_a;
-                bodies[b].vel += p * c.inv_b;
+                apply(bodies, c, p);
                 c.bounce = 0.0;
             }
         }
