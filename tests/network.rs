@@ -1,167 +1,17 @@
 //! End to end over zenoh on loopback: real server processes, the `ricochet` command-line
 //! client, the typed Rust client and the Python client. Every wait is bounded.
 
-use std::net::TcpListener;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command as Process, Output, Stdio};
+mod common;
+
+use std::path::Path;
+use std::process::{Command as Process, Stdio};
 use std::time::{Duration, Instant};
 
+use common::*;
 use ricochet_protocol::client::{Client, Mode, Network};
 use ricochet_protocol::command::{Action, Command, Direction, ServerCommand};
 use ricochet_protocol::dump::read_dump;
 use ricochet_protocol::frame::{FrameDecoder, POS_QUANTUM};
-
-const TIMEOUT: Duration = Duration::from_secs(10);
-
-fn target_dir() -> PathBuf {
-    let exe = std::env::current_exe().expect("test binary path");
-    exe.parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps")
-        .to_path_buf()
-}
-
-fn bin(name: &str) -> PathBuf {
-    let p = target_dir().join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
-    assert!(
-        p.exists(),
-        "{} is missing: run the tests with `cargo test --workspace`",
-        p.display()
-    );
-    p
-}
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn scene(name: &str) -> String {
-    root()
-        .join("assets/scenes")
-        .join(name)
-        .display()
-        .to_string()
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ricochet-network-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
-}
-
-fn free_endpoint() -> String {
-    let port = TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    format!("tcp/127.0.0.1:{port}")
-}
-
-/// A child process killed when dropped.
-struct Running(Child);
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// A server hosting `world` from `scene_name`, listening on a fresh endpoint.
-struct Server {
-    endpoint: String,
-    world: String,
-    _process: Running,
-}
-
-impl Server {
-    fn start(scene_name: &str, world: &str, extra: &[&str]) -> Server {
-        let endpoint = free_endpoint();
-        let child = Process::new(bin("ricochet-server"))
-            .args([
-                "run",
-                "--scene",
-                &scene(scene_name),
-                "--world",
-                world,
-                "--listen",
-                &endpoint,
-            ])
-            .args(extra)
-            .env("RUST_LOG", "warn")
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("ricochet-server starts");
-        let server = Server {
-            endpoint,
-            world: world.to_string(),
-            _process: Running(child),
-        };
-        server.wait_up();
-        server
-    }
-
-    fn network(&self) -> Network {
-        Network::client(Mode::Peer, vec![self.endpoint.clone()])
-    }
-
-    fn client(&self) -> Client {
-        Client::open(&self.network(), &self.world).expect("client session")
-    }
-
-    /// Waits until the server answers a request (bounded).
-    fn wait_up(&self) {
-        let client = self.client();
-        let began = Instant::now();
-        while began.elapsed() < TIMEOUT * 3 {
-            // `deselect` changes nothing but answers.
-            if client
-                .request(
-                    &Command::World(Action::Deselect),
-                    Duration::from_millis(500),
-                )
-                .is_ok()
-            {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        panic!(
-            "server of world {} on {} never answered",
-            self.world, self.endpoint
-        );
-    }
-
-    /// Runs the `ricochet` client against this server.
-    fn cli(&self, args: &[&str]) -> Output {
-        Process::new(bin("ricochet"))
-            .args(["--world", &self.world, "--connect", &self.endpoint])
-            .args(args)
-            .env("RUST_LOG", "warn")
-            .output()
-            .expect("ricochet starts")
-    }
-}
-
-fn ok(out: &Output) -> String {
-    assert!(
-        out.status.success(),
-        "failed: {}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-fn request(client: &Client, command: Command) -> ricochet_protocol::command::Reply {
-    client.request(&command, TIMEOUT).expect("a reply")
-}
-
-fn resume(client: &Client) {
-    assert!(request(client, Command::Server(ServerCommand::Resume)).ok);
-}
 
 /// One subscription to a world's frames, decoded as they come.
 struct Follower {
@@ -652,4 +502,28 @@ fn the_python_client_sends_commands_and_decodes_frames() {
         .max()
         .unwrap();
     assert!(particles > 0 || frames[0]["frame"].as_u64().unwrap() > 400);
+}
+
+#[test]
+fn the_info_key_gives_the_scene_its_bounds_and_groups_and_changes_on_load() {
+    let server = Server::start("emitters.toml", "info", &[]);
+    let client = server.client();
+    let info = client.info(TIMEOUT).expect("info");
+    assert_eq!(info.scene, "emitters.toml");
+    assert_eq!(info.bounds, [[0.0, 0.0], [200.0, 112.5]]);
+    assert!((info.dt - 1.0 / 60.0).abs() < 1e-6, "{}", info.dt);
+    for g in ["platforms", "hero", "minions"] {
+        assert!(info.groups.iter().any(|x| x == g), "{g}: {:?}", info.groups);
+    }
+    let reply = request(
+        &client,
+        Command::Server(ServerCommand::Load {
+            path: Some(scene("bounds.toml")),
+            text: None,
+        }),
+    );
+    assert!(reply.ok, "{reply:?}");
+    let loaded = client.info(TIMEOUT).expect("info");
+    assert_eq!(loaded.scene, "bounds.toml");
+    assert!(loaded.generation > info.generation);
 }

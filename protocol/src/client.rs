@@ -257,6 +257,12 @@ impl Client {
         self.fetch(&self.keys.state, timeout)
     }
 
+    /// The world's scene name, bounds, step and groups.
+    pub fn info(&self, timeout: Duration) -> Result<crate::command::WorldInfo> {
+        let bytes = self.fetch(&self.keys.info, timeout)?;
+        serde_json::from_slice(&bytes).context("unreadable world info")
+    }
+
     /// Subscribes to frames and brings a decoder up to date: statics from the snapshot,
     /// dynamic state from a resync key frame. Frames the subscription already holds that
     /// are not newer are skipped by the decoder.

@@ -190,6 +190,21 @@ pub struct Event {
     pub error: Option<String>,
 }
 
+/// What a viewer needs to frame a world: the answer of the `info` key.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct WorldInfo {
+    /// The scene's file name (or `inline` for a scene sent as text).
+    pub scene: String,
+    /// The scene's bounds, `[[min_x, min_y], [max_x, max_y]]`, in world units (y up).
+    pub bounds: [[f64; 2]; 2],
+    /// The step, seconds.
+    pub dt: f64,
+    /// The body groups by index, as the scene declares them.
+    pub groups: Vec<String>,
+    /// Changes whenever the scene is (re)loaded.
+    pub generation: u64,
+}
+
 /// One line of an input log (`ricochet record`, `ricochet-server simulate --inputs`): an
 /// action applied after `frame` steps.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

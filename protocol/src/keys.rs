@@ -7,6 +7,7 @@
 //! | `ricochet/<world>/frame` | publication, every step | a binary frame ([`crate::frame`]) |
 //! | `ricochet/<world>/snapshot` | publication when statics change, and queryable | a binary snapshot of the static bodies |
 //! | `ricochet/<world>/state` | queryable | a key frame of the dynamic state now, for late joiners |
+//! | `ricochet/<world>/info` | queryable | a [`crate::command::WorldInfo`], JSON: the scene's name, bounds, step and groups |
 //! | `ricochet/<world>/event` | publication | a [`crate::command::Event`] per handled command, JSON |
 //! | `ricochet/<world>/alive` | liveliness token | held while the server runs |
 //!
@@ -43,6 +44,7 @@ pub struct WorldKeys {
     pub frame: String,
     pub snapshot: String,
     pub state: String,
+    pub info: String,
     pub event: String,
     pub alive: String,
 }
@@ -58,6 +60,7 @@ impl WorldKeys {
             frame: k("frame"),
             snapshot: k("snapshot"),
             state: k("state"),
+            info: k("info"),
             event: k("event"),
             alive: k("alive"),
         })

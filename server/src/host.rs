@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use ricochet_protocol::client::Network;
-use ricochet_protocol::command::{Command, Event, Reply, ServerCommand};
+use ricochet_protocol::command::{Command, Event, Reply, ServerCommand, WorldInfo};
 use ricochet_protocol::frame::FrameEncoder;
 use ricochet_protocol::keys::WorldKeys;
 use zenoh::qos::CongestionControl;
@@ -59,6 +59,8 @@ struct Hosted {
     paused: bool,
     overruns: u32,
     last_step_ms: f32,
+    /// Bumped by every (re)load, so viewers can tell a new scene.
+    generation: u64,
 }
 
 impl Hosted {
@@ -80,13 +82,30 @@ impl Hosted {
             paused: false,
             overruns: 0,
             last_step_ms: 0.0,
+            generation: 0,
         })
     }
 
     fn replace_world(&mut self, world: World) {
         self.world = world;
+        self.generation += 1;
         self.encoder.force_key_frame();
         self.statics_revision = None;
+    }
+
+    fn info(&self) -> WorldInfo {
+        let [lo, hi] = self.world.config.bounds;
+        WorldInfo {
+            scene: self
+                .scene_name
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| self.scene_name.display().to_string()),
+            bounds: [[lo.x, lo.y], [hi.x, hi.y]],
+            dt: self.world.config.dt,
+            groups: self.world.group_names().map(str::to_string).collect(),
+            generation: self.generation,
+        }
     }
 
     /// Re-encodes the statics snapshot if they changed; true when it did.
@@ -241,6 +260,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
         .wait()
         .map_err(z)?;
     let state_queries = session.declare_queryable(&keys.state).wait().map_err(z)?;
+    let info_queries = session.declare_queryable(&keys.info).wait().map_err(z)?;
     let _alive = session
         .liveliness()
         .declare_token(&keys.alive)
@@ -299,6 +319,13 @@ pub fn run(opts: HostOptions) -> Result<()> {
             let state = host.encoder.resync_frame().expect("frame 0 was published");
             if let Err(e) = query.reply(query.key_expr().clone(), state).wait() {
                 tracing::debug!("state reply failed: {e}");
+            }
+        }
+
+        while let Ok(Some(query)) = info_queries.try_recv() {
+            let info = serde_json::to_vec(&host.info()).expect("world info serialises");
+            if let Err(e) = query.reply(query.key_expr().clone(), info).wait() {
+                tracing::debug!("info reply failed: {e}");
             }
         }
 

@@ -215,6 +215,11 @@ impl World {
     }
 
     /// The group's id, if any body or interaction has named it.
+    /// The group names by index.
+    pub fn group_names(&self) -> impl Iterator<Item = &str> {
+        self.groups.iter().map(|g| g.name.as_str())
+    }
+
     pub fn group(&self, name: &str) -> Option<GroupId> {
         self.groups
             .iter()

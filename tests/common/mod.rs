@@ -1,0 +1,163 @@
+//! Helpers shared by the end-to-end tests: binaries, scenes, free ports, a server process
+//! that is killed when dropped. Every wait is bounded.
+#![allow(dead_code)]
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command as Process, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use ricochet_protocol::client::{Client, Mode, Network};
+use ricochet_protocol::command::{Action, Command, ServerCommand};
+
+pub const TIMEOUT: Duration = Duration::from_secs(10);
+
+pub fn target_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("test binary path");
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("target/<profile>/deps")
+        .to_path_buf()
+}
+
+pub fn bin(name: &str) -> PathBuf {
+    let p = target_dir().join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        p.exists(),
+        "{} is missing: run the tests with `cargo test --workspace`",
+        p.display()
+    );
+    p
+}
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn scene(name: &str) -> String {
+    root()
+        .join("assets/scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+pub fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ricochet-tests-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+pub fn free_endpoint() -> String {
+    let port = TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    format!("tcp/127.0.0.1:{port}")
+}
+
+/// A child process killed when dropped.
+pub struct Running(pub Child);
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// A server hosting `world` from `scene_name`, listening on a fresh endpoint.
+pub struct Server {
+    pub endpoint: String,
+    pub world: String,
+    _process: Running,
+}
+
+impl Server {
+    pub fn start(scene_name: &str, world: &str, extra: &[&str]) -> Server {
+        let endpoint = free_endpoint();
+        let child = Process::new(bin("ricochet-server"))
+            .args([
+                "run",
+                "--scene",
+                &scene(scene_name),
+                "--world",
+                world,
+                "--listen",
+                &endpoint,
+            ])
+            .args(extra)
+            .env("RUST_LOG", "warn")
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("ricochet-server starts");
+        let server = Server {
+            endpoint,
+            world: world.to_string(),
+            _process: Running(child),
+        };
+        server.wait_up();
+        server
+    }
+
+    pub fn network(&self) -> Network {
+        Network::client(Mode::Peer, vec![self.endpoint.clone()])
+    }
+
+    pub fn client(&self) -> Client {
+        Client::open(&self.network(), &self.world).expect("client session")
+    }
+
+    /// Waits until the server answers a request (bounded).
+    pub fn wait_up(&self) {
+        let client = self.client();
+        let began = Instant::now();
+        while began.elapsed() < TIMEOUT * 3 {
+            // `deselect` changes nothing but answers.
+            if client
+                .request(
+                    &Command::World(Action::Deselect),
+                    Duration::from_millis(500),
+                )
+                .is_ok()
+            {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!(
+            "server of world {} on {} never answered",
+            self.world, self.endpoint
+        );
+    }
+
+    /// Runs the `ricochet` client against this server.
+    pub fn cli(&self, args: &[&str]) -> Output {
+        Process::new(bin("ricochet"))
+            .args(["--world", &self.world, "--connect", &self.endpoint])
+            .args(args)
+            .env("RUST_LOG", "warn")
+            .output()
+            .expect("ricochet starts")
+    }
+}
+
+pub fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "failed: {}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+pub fn request(client: &Client, command: Command) -> ricochet_protocol::command::Reply {
+    client.request(&command, TIMEOUT).expect("a reply")
+}
+
+pub fn resume(client: &Client) {
+    assert!(request(client, Command::Server(ServerCommand::Resume)).ok);
+}

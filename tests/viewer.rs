@@ -1,0 +1,385 @@
+//! The viewer end to end: a real server, a real `ricochet-viewer`, Rerun's real sinks.
+//!
+//! - `--save`: the .rrd file is read back with the `rerun` Python package
+//!   (`tests/read_rrd.py`) and checked entity by entity, frame by frame.
+//! - `--web`: Debian's chromium (headless, driven by Playwright: `tests/browser/`) loads the
+//!   served web viewer while the demo script runs; the screenshots are checked pixel by
+//!   pixel and kept under `RICOCHET_ARTIFACTS` (default `<target>/artifacts`).
+//!
+//! Every wait is bounded.
+
+mod common;
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Command as Process, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use common::*;
+use ricochet_protocol::command::{Action, Command, ServerCommand};
+use serde_json::Value;
+
+/// Spawns a thread that forwards `reader`'s lines to a channel (so waits can be bounded).
+fn lines_of(reader: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(reader).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// The first line with `marker`, within `limit`.
+fn wait_line(rx: &mpsc::Receiver<String>, marker: &str, limit: Duration, what: &str) -> String {
+    let deadline = std::time::Instant::now() + limit;
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match rx.recv_timeout(left) {
+            Ok(line) if line.contains(marker) => return line,
+            Ok(_) => {}
+            Err(_) => panic!("{what}: no line with `{marker}` within {limit:?}"),
+        }
+    }
+}
+
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn artifacts() -> PathBuf {
+    let dir = std::env::var_os("RICOCHET_ARTIFACTS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| target_dir().join("artifacts"));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn read_rrd(path: &Path) -> Value {
+    let out = Process::new("python3")
+        .arg(root().join("tests/read_rrd.py"))
+        .arg(path)
+        .output()
+        .expect("python3 runs");
+    let stdout = ok(&out);
+    serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("read_rrd.py printed {stdout}: {e}"))
+}
+
+#[test]
+fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
+    let server = Server::start("emitters.toml", "saved", &[]);
+    let client = server.client();
+    resume(&client);
+    let file = tmp("saved.rrd");
+    let _ = std::fs::remove_file(&file);
+    let frames = 120u64;
+    let viewer = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "saved", "--connect", &server.endpoint, "--save"])
+        .arg(&file)
+        .args(["--frames", &frames.to_string(), "--wait", "20"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ricochet-viewer starts");
+    let mut viewer = Running(viewer);
+    // Commands while it records: one applied, one refused; both belong in the text log.
+    std::thread::sleep(Duration::from_millis(1500));
+    let spawned = request(
+        &client,
+        Command::World(Action::SpawnDumbMinion { at: [100.0, 90.0] }),
+    );
+    assert!(spawned.ok, "{spawned:?}");
+    let emitter = request(
+        &client,
+        Command::World(Action::StartEmitter {
+            preset: "fire".into(),
+            count: 300,
+            at: [150.0, 30.0],
+        }),
+    );
+    assert!(emitter.ok, "{emitter:?}");
+    client.send_raw(b"{\"do\":\"teleport\"}".to_vec()).unwrap();
+
+    let began = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            began.elapsed() < Duration::from_secs(60),
+            "the viewer did not stop after {frames} frames"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(viewer.0.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert!(status.success(), "viewer failed: {err}");
+
+    let rrd = read_rrd(&file);
+    let entities = rrd["entities"].as_object().expect("entities");
+    for path in [
+        "/world/bounds",
+        "/world/statics/platforms",
+        "/world/bodies/hero",
+        "/world/particles",
+        "/world/emitters",
+        "/stats/step_ms",
+        "/stats/contacts",
+        "/stats/relaxation_iterations",
+        "/stats/deepest_penetration",
+        "/stats/kinetic_energy",
+        "/stats/particles",
+        "/stats/bytes_per_frame",
+        "/events",
+    ] {
+        assert!(
+            entities.contains_key(path),
+            "{path} missing: {:?}",
+            entities.keys().collect::<Vec<_>>()
+        );
+    }
+    // Statics are static data, logged once; the platforms are rectangles: 3 strips each.
+    let platforms = &entities["/world/statics/platforms"];
+    assert_eq!(platforms["static"], true);
+    let strips = platforms["strips"].as_array().unwrap();
+    assert_eq!(strips.len(), 1, "statics logged once: {strips:?}");
+    assert_eq!(strips[0].as_u64().unwrap() % 3, 0);
+    assert!(strips[0].as_u64().unwrap() >= 3 * 30);
+
+    // One drawing per frame drawn, each at its own frame.
+    let hero = &entities["/world/bodies/hero"];
+    assert_eq!(hero["static"], false);
+    let drawn: Vec<u64> = hero["frames"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(drawn.len() as u64, frames, "{drawn:?}");
+    assert!(drawn.windows(2).all(|w| w[0] < w[1]));
+
+    // Every drawing of the particles holds exactly as many points as the server counted in
+    // that frame; the scene starts with an explosion burning, so there are some.
+    let counts = rrd["particle_counts"].as_object().unwrap();
+    let figures = rrd["particle_figures"].as_object().unwrap();
+    assert!(!counts.is_empty());
+    let mut nonzero = 0;
+    for (frame, n) in counts {
+        let figure = figures
+            .get(frame)
+            .unwrap_or_else(|| panic!("no particle figure at frame {frame}"));
+        assert_eq!(n.as_f64(), figure.as_f64(), "frame {frame}");
+        nonzero += usize::from(n.as_u64().unwrap() > 0);
+    }
+    assert!(nonzero > 10, "{counts:?}");
+    // Figures for every frame decoded, drawn or not.
+    assert!(rrd["stats_frames"].as_u64().unwrap() >= frames);
+
+    let log = rrd["events"].as_array().unwrap();
+    let text: Vec<&str> = log.iter().filter_map(Value::as_str).collect();
+    assert!(
+        text.iter().any(|t| t.contains("spawn_dumb_minion") && t.contains("->")),
+        "{text:?}"
+    );
+    assert!(
+        text.iter().any(|t| t.starts_with("refused") && t.contains("teleport")),
+        "{text:?}"
+    );
+}
+
+/// Pixels of `img` (RGBA8) inside the box `[x0, x1) x [y0, y1)` (fractions of the size)
+/// for which `pred` holds.
+fn count(img: &(Vec<u8>, u32, u32), frac: [f32; 4], pred: impl Fn(u8, u8, u8) -> bool) -> usize {
+    let (data, w, h) = img;
+    let (x0, x1) = ((frac[0] * *w as f32) as u32, (frac[1] * *w as f32) as u32);
+    let (y0, y1) = ((frac[2] * *h as f32) as u32, (frac[3] * *h as f32) as u32);
+    let mut n = 0;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let i = ((y * w + x) * 4) as usize;
+            n += usize::from(pred(data[i], data[i + 1], data[i + 2]));
+        }
+    }
+    n
+}
+
+fn decode_png(path: &Path) -> (Vec<u8>, u32, u32) {
+    let decoder = png::Decoder::new(BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let rgba: Vec<u8> = match info.color_type {
+        png::ColorType::Rgba => buf[..info.buffer_size()].to_vec(),
+        png::ColorType::Rgb => buf[..info.buffer_size()]
+            .chunks(3)
+            .flat_map(|c| [c[0], c[1], c[2], 255])
+            .collect(),
+        other => panic!("unexpected PNG colour type {other:?}"),
+    };
+    (rgba, info.width, info.height)
+}
+
+/// A scene of two overlapping boxes, detection only: both stay flagged collided.
+const OVERLAP_SCENE: &str = r#"
+[world]
+gravity = [0, 0]
+bounds = [[0, 0], [200, 112.5]]
+
+[[body]]
+id = "left"
+group = "a"
+shape = "rect"
+size = [60, 40]
+pos = [80, 56]
+
+[[body]]
+id = "right"
+group = "b"
+shape = "rect"
+size = [60, 40]
+pos = [120, 56]
+
+[[interact]]
+a = "a"
+b = "b"
+resolve = false
+"#;
+
+#[test]
+fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
+    let server = Server::start("emitters.toml", "web", &[]);
+    let client = server.client();
+    resume(&client);
+    let (web_port, grpc_port) = (free_port(), free_port());
+    let mut viewer = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "web", "--connect", &server.endpoint, "--web"])
+        .args(["--web-port", &web_port.to_string()])
+        .args(["--grpc-port", &grpc_port.to_string()])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("ricochet-viewer starts");
+    let out = lines_of(viewer.stdout.take().unwrap());
+    let _viewer = Running(viewer);
+    let line = wait_line(&out, "open http", Duration::from_secs(60), "viewer");
+    let url = line.split_whitespace().last().unwrap().to_string();
+    assert!(url.contains(&web_port.to_string()), "{url}");
+
+    // The demo script plays while the page loads, and fires keep burning meanwhile.
+    let mut script = Process::new(bin("ricochet"))
+        .args(["--world", "web", "--connect", &server.endpoint, "script"])
+        .arg(root().join("assets/scripts/demo.ricochet"))
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("ricochet script starts");
+    let burning = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+    let stoker = {
+        let burning = burning.clone();
+        let client = server.client();
+        std::thread::spawn(move || {
+            let mut k = 0.0;
+            while burning.load(std::sync::atomic::Ordering::Relaxed) {
+                let fire = Command::World(Action::StartEmitter {
+                    preset: "fire".into(),
+                    count: 300,
+                    at: [60.0 + 80.0 * (k % 2.0), 60.0],
+                });
+                let _ = client.send(&fire);
+                k += 1.0;
+                std::thread::sleep(Duration::from_millis(700));
+            }
+        })
+    };
+
+    let browser = root().join("tests/browser");
+    assert!(
+        browser.join("node_modules/playwright-core").exists(),
+        "playwright-core is not installed: run `npm ci --prefix tests/browser` (.ci/install does)"
+    );
+    assert!(
+        Path::new("/usr/bin/chromium").exists() || std::env::var_os("CHROMIUM").is_some(),
+        "chromium is missing: `apt-get install chromium` (.ci/install does)"
+    );
+    let mut node = Process::new("node")
+        .arg(browser.join("screenshot.mjs"))
+        .arg(&url)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("node runs");
+    let replies = lines_of(node.stdout.take().unwrap());
+    let mut node_in = node.stdin.take().unwrap();
+    let mut node = Running(node);
+    wait_line(&replies, "ready", Duration::from_secs(120), "the page");
+
+    let dir = artifacts();
+    // The 2D view fills the left three fifths of the page, the plots the right.
+    let (world, plots) = ([0.0, 0.58, 0.06, 0.95], [0.62, 1.0, 0.06, 0.72]);
+    let red = |r: u8, g: u8, b: u8| r >= 200 && g <= 60 && b <= 60;
+    // The fire as displayed: red walking to orange, yellow and white as it oversaturates.
+    let fire = |r: u8, g: u8, b: u8| r >= 200 && (70..=235).contains(&g) && u16::from(b) + 20 < u16::from(g);
+    let plot = |r: u8, g: u8, b: u8| r <= 60 && g >= 200 && b <= 60;
+    // Screenshots every few seconds until `done` holds (the software-rendered page lags
+    // the world by seconds on a loaded machine); the last one is kept.
+    let mut shoot = |name: &str, done: &dyn Fn(&(Vec<u8>, u32, u32)) -> bool| {
+        let path = dir.join(name);
+        let began = std::time::Instant::now();
+        loop {
+            writeln!(node_in, "shot {}", path.display()).unwrap();
+            wait_line(&replies, "shot", Duration::from_secs(60), name);
+            let img = decode_png(&path);
+            if done(&img) || began.elapsed() > Duration::from_secs(150) {
+                eprintln!("screenshot: {}", path.display());
+                return img;
+            }
+            std::thread::sleep(Duration::from_secs(3));
+        }
+    };
+
+    let demo = shoot("viewer-demo.png", &|img| {
+        count(img, world, fire) >= 100 && count(img, plots, plot) >= 100
+    });
+    burning.store(false, std::sync::atomic::Ordering::Relaxed);
+    stoker.join().unwrap();
+    let _ = script.kill();
+    let _ = script.wait();
+    let fire_px = count(&demo, world, fire);
+    let plot_px = count(&demo, plots, plot);
+    assert!(fire_px >= 100, "particle colours: {fire_px} pixels");
+    assert!(plot_px >= 100, "plot lines: {plot_px} pixels");
+
+    // Now a scene of two boxes overlapping, detection only, no particles: only the
+    // collided outlines are red.
+    let reply = request(
+        &client,
+        Command::Server(ServerCommand::Load {
+            path: None,
+            text: Some(OVERLAP_SCENE.to_string()),
+        }),
+    );
+    assert!(reply.ok, "{reply:?}");
+    let collided = shoot("viewer-collided.png", &|img| {
+        count(img, world, red) >= 200 && count(img, world, fire) < 20
+    });
+    let _ = writeln!(node_in, "quit");
+    let _ = node.0.wait();
+    let red_px = count(&collided, world, red);
+    assert!(red_px >= 200, "red collided outlines: {red_px} pixels");
+    assert!(
+        count(&collided, world, fire) < 20,
+        "the particles went with the old scene"
+    );
+    assert!(count(&collided, plots, plot) >= 100, "plots still drawn");
+}

@@ -1,0 +1,321 @@
+//! `ricochet-viewer`: subscribes to a Ricochet world over zenoh and logs it to Rerun.
+//!
+//! Frames are delta-encoded, so every frame that arrives is decoded (cheap); drawing is
+//! what costs, so each pass of the loop draws only the newest state (at most `--fps` times
+//! a second) and logs the figures of every frame it decoded. When Rerun is slower than the world, frames are skipped, never
+//! queued without bound, and the server is never held back: it publishes real-time frames
+//! with zenoh's drop congestion control. A gap in the frames (a frame lost on the way)
+//! is repaired by asking the server for a key frame of its state now.
+
+mod blueprint;
+mod draw;
+mod sink;
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{ArgGroup, Parser};
+use ricochet_protocol::client::{parse_event, Client, Mode, Network};
+use ricochet_protocol::frame::DecodeError;
+use ricochet_protocol::keys::DEFAULT_WORLD;
+
+use crate::sink::WorldSink;
+
+/// Draws a Ricochet world in Rerun: bounds, bodies, particles, the step's figures and the
+/// commands applied.
+#[derive(Parser, Debug)]
+#[command(version, group(ArgGroup::new("sink").args(["web", "spawn", "connect_rerun", "save"])))]
+struct Opts {
+    /// The world to watch.
+    #[arg(long, default_value = DEFAULT_WORLD)]
+    world: String,
+    /// Zenoh endpoints to connect to (default tcp/127.0.0.1:7447, where a server listens).
+    #[arg(long = "connect", value_name = "ENDPOINT")]
+    connect: Vec<String>,
+    /// peer or client (through a router).
+    #[arg(long, default_value = "peer")]
+    mode: Mode,
+
+    /// Serve Rerun's web viewer and its gRPC server on localhost and print the address
+    /// (the default).
+    #[arg(long)]
+    web: bool,
+    /// Spawn the native viewer (`rerun` on the PATH: `pip install rerun-sdk==0.36.3`).
+    #[arg(long)]
+    spawn: bool,
+    /// Stream to a Rerun viewer already running, e.g. rerun+http://127.0.0.1:9876/proxy.
+    #[arg(long, value_name = "URL")]
+    connect_rerun: Option<String>,
+    /// Write an .rrd file (headless).
+    #[arg(long, value_name = "FILE.rrd")]
+    save: Option<PathBuf>,
+
+    /// Draw at most this many frames a second (0: every frame that arrives). The figures
+    /// of every frame are logged whatever the rate. Default 30, and 0 with --save.
+    #[arg(long, value_name = "HZ")]
+    fps: Option<f64>,
+    /// Stop after drawing this many frames.
+    #[arg(long, value_name = "N")]
+    frames: Option<u64>,
+    /// Stop when no frame has arrived for this long, seconds (default: never, but 10 with
+    /// --save).
+    #[arg(long, value_name = "SECS")]
+    idle_exit: Option<f64>,
+    /// How long to wait for the world's server to answer at start, seconds.
+    #[arg(long, default_value_t = 30.0, value_name = "SECS")]
+    wait: f64,
+
+    /// Address the web viewer and gRPC server bind to (--web).
+    #[arg(long, default_value = "127.0.0.1", value_name = "IP")]
+    bind: String,
+    /// Port of the web viewer's page (--web).
+    #[arg(long, default_value_t = 9090)]
+    web_port: u16,
+    /// Port of the gRPC server the page reads from (--web).
+    #[arg(long, default_value_t = 9876)]
+    grpc_port: u16,
+    /// History the gRPC server keeps for viewers that open the page later (--web); the
+    /// oldest frames go first, static data stays.
+    #[arg(long, default_value = "1GiB", value_name = "SIZE")]
+    memory_limit: String,
+}
+
+/// Whether the page is served by this process.
+#[derive(PartialEq)]
+enum Served {
+    Web,
+    Nothing,
+}
+
+fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(rerun::RecordingStream, Served)> {
+    let builder = rerun::RecordingStreamBuilder::new(app_id);
+    if let Some(path) = &opts.save {
+        // A file takes whole chunks at its own pace.
+        let rec = builder
+            .save(path)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        return Ok((rec, Served::Nothing));
+    }
+    // A live viewer ingests a few larger chunks far faster than many small ones: flush
+    // every 50 ms (3 frames at 60 Hz) rather than every 8.
+    let builder = builder.batcher_config(rerun::log::ChunkBatcherConfig {
+        flush_tick: Duration::from_millis(50),
+        ..rerun::log::ChunkBatcherConfig::DEFAULT
+    });
+    if opts.spawn {
+        let rec = builder.spawn().map_err(|e| {
+            anyhow!("cannot spawn the native viewer ({e}); is `rerun` on the PATH? `pip install rerun-sdk==0.36.3` provides it")
+        })?;
+        return Ok((rec, Served::Nothing));
+    }
+    if let Some(url) = &opts.connect_rerun {
+        let rec = builder
+            .connect_grpc_opts(url.clone())
+            .with_context(|| format!("cannot connect to the Rerun viewer at {url}"))?;
+        return Ok((rec, Served::Nothing));
+    }
+    let memory_limit = rerun::MemoryLimit::parse(&opts.memory_limit)
+        .map_err(|e| anyhow!("--memory-limit {}: {e}", opts.memory_limit))?;
+    let rec = builder
+        .serve_grpc_opts(
+            &opts.bind,
+            opts.grpc_port,
+            rerun::ServerOptions {
+                memory_limit,
+                ..Default::default()
+            },
+        )
+        .with_context(|| {
+            format!(
+                "cannot serve gRPC on {}:{} (--grpc-port)",
+                opts.bind, opts.grpc_port
+            )
+        })?;
+    let grpc = format!("rerun+http://{}:{}/proxy", opts.bind, opts.grpc_port);
+    let server = rerun::serve_web_viewer(rerun::web_viewer::WebViewerConfig {
+        bind_ip: opts.bind.clone(),
+        web_port: opts.web_port.into(),
+        connect_to: vec![grpc.clone()],
+        open_browser: false,
+        ..Default::default()
+    })
+    .with_context(|| {
+        format!(
+            "cannot serve the web viewer on {}:{} (--web-port)",
+            opts.bind, opts.web_port
+        )
+    })?;
+    let url = format!(
+        "{}/?url={}",
+        server.server_url().trim_end_matches('/'),
+        grpc.replace('+', "%2B")
+    );
+    println!("ricochet-viewer: open {url}");
+    // Served until the process exits.
+    server.detach();
+    Ok((rec, Served::Web))
+}
+
+/// Asks for the world's info until its server answers or `wait` runs out.
+fn wait_for_world(
+    client: &Client,
+    wait: Duration,
+) -> Result<ricochet_protocol::command::WorldInfo> {
+    let start = Instant::now();
+    loop {
+        match client.info(Duration::from_millis(1000)) {
+            Ok(info) => return Ok(info),
+            Err(e) if start.elapsed() >= wait => {
+                return Err(e.context(format!(
+                    "world `{}` did not answer within {wait:?}",
+                    client.keys().world
+                )))
+            }
+            Err(_) => std::thread::sleep(Duration::from_millis(200)),
+        }
+    }
+}
+
+fn run(opts: Opts) -> Result<()> {
+    if opts.frames == Some(0) {
+        bail!("--frames must be at least 1");
+    }
+    let min_draw_interval = match opts.fps.unwrap_or(if opts.save.is_some() { 0.0 } else { 30.0 }) {
+        hz if hz > 0.0 && hz.is_finite() => Duration::from_secs_f64(1.0 / hz),
+        hz if hz == 0.0 => Duration::ZERO,
+        hz => bail!("--fps must be 0 or more, not {hz}"),
+    };
+    let idle_exit = opts
+        .idle_exit
+        .or(opts.save.as_ref().map(|_| 10.0))
+        .map(Duration::from_secs_f64);
+    let network = Network::client(opts.mode, opts.connect.clone());
+    let client = Client::open(&network, &opts.world)?;
+    let info = wait_for_world(&client, Duration::from_secs_f64(opts.wait))?;
+    tracing::info!(world = %opts.world, scene = %info.scene, "joined");
+
+    let (rec, served) = open_sink(&opts, "ricochet")?;
+    let mut sink = WorldSink::new(rec, "ricochet")?;
+    sink.set_info(info)?;
+
+    let events = client.events()?;
+    let snapshots = client.snapshots()?;
+    let (frames, mut decoder) = client.join(Duration::from_secs(5))?;
+    sink.log_statics(&decoder.statics)?;
+    sink.log_stats(decoder.frame, decoder.time, &decoder.stats, 0)?;
+    sink.draw(&decoder)?;
+
+    let mut last_frame_at = Instant::now();
+    let mut skipped: u64 = 0;
+    let mut resyncs: u64 = 0;
+    let mut reported_skips = Instant::now();
+    let mut draw_time = Duration::ZERO;
+    // Frames decoded since the last drawing.
+    let mut pending = 0u64;
+    let mut last_draw = Instant::now();
+    let began = Instant::now();
+    while opts.frames.is_none_or(|n| sink.frames_drawn < n) {
+        while let Ok(Some(sample)) = events.try_recv() {
+            match parse_event(&sample) {
+                Ok(event) => sink.log_event(&event)?,
+                Err(e) => sink.log_note(&format!("unreadable event: {e:#}"), "WARN")?,
+            }
+        }
+        // A snapshot comes when the statics change or a scene is (re)loaded.
+        let mut new_statics = false;
+        while let Ok(Some(sample)) = snapshots.try_recv() {
+            match decoder.apply(&sample.payload().to_bytes()) {
+                Ok(_) => new_statics = true,
+                Err(e) => sink.log_note(&format!("unreadable snapshot: {e}"), "WARN")?,
+            }
+        }
+        if new_statics {
+            if let Ok(info) = client.info(Duration::from_secs(2)) {
+                sink.set_info(info)?;
+            }
+            sink.log_statics(&decoder.statics)?;
+        }
+
+        let Ok(Some(first)) = frames.recv_timeout(Duration::from_millis(200)) else {
+            if idle_exit.is_some_and(|limit| last_frame_at.elapsed() >= limit) {
+                sink.log_note("the world stopped sending frames", "WARN")?;
+                break;
+            }
+            continue;
+        };
+        last_frame_at = Instant::now();
+        let mut batch = vec![first];
+        while let Ok(Some(sample)) = frames.try_recv() {
+            batch.push(sample);
+        }
+        let mut applied = 0u64;
+        for sample in &batch {
+            let bytes = sample.payload().to_bytes();
+            match decoder.apply(&bytes) {
+                Ok(h) => {
+                    applied += 1;
+                    sink.log_stats(h.frame, h.time, &h.stats, bytes.len())?;
+                }
+                Err(DecodeError::Stale { .. }) => {}
+                Err(DecodeError::OutOfSync { expected, got }) => {
+                    resyncs += 1;
+                    let state = client.state(Duration::from_secs(2))?;
+                    decoder
+                        .apply(&state)
+                        .map_err(|e| anyhow!("the server's state is unreadable: {e}"))?;
+                    sink.log_note(
+                        &format!("frames {expected}..{got} lost on the way; resynced at frame {} (resync {resyncs})", decoder.frame),
+                        "WARN",
+                    )?;
+                }
+                Err(e) => sink.log_note(&format!("unreadable frame: {e}"), "WARN")?,
+            }
+        }
+        pending += applied;
+        if pending == 0 || last_draw.elapsed() < min_draw_interval {
+            continue;
+        }
+        skipped += pending - 1;
+        pending = 0;
+        last_draw = Instant::now();
+        sink.draw(&decoder)?;
+        draw_time += last_draw.elapsed();
+        if skipped > 0 && reported_skips.elapsed() >= Duration::from_secs(5) {
+            tracing::info!(skipped, "frames decoded but not drawn (the viewer was behind)");
+            reported_skips = Instant::now();
+        }
+    }
+    sink.recording().flush_blocking()?;
+    let drawn = sink.frames_drawn;
+    tracing::info!(
+        drawn,
+        skipped,
+        resyncs,
+        seconds = format!("{:.2}", began.elapsed().as_secs_f64()),
+        draw_ms = format!("{:.3}", draw_time.as_secs_f64() * 1e3 / drawn.max(1) as f64),
+        "done"
+    );
+    if served == Served::Web {
+        // The page reads from this process: keep it up so the recording can be browsed.
+        println!("ricochet-viewer: stopped drawing; still serving the recording (Ctrl-C to quit)");
+        loop {
+            std::thread::park();
+        }
+    }
+    Ok(())
+}
+
+fn main() {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "info,zenoh=warn,re_chunk=error".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    if let Err(e) = run(Opts::parse()) {
+        eprintln!("ricochet-viewer: {e:#}");
+        std::process::exit(1);
+    }
+}
