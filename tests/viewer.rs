@@ -186,11 +186,13 @@ fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
     let log = rrd["events"].as_array().unwrap();
     let text: Vec<&str> = log.iter().filter_map(Value::as_str).collect();
     assert!(
-        text.iter().any(|t| t.contains("spawn_dumb_minion") && t.contains("->")),
+        text.iter()
+            .any(|t| t.contains("spawn_dumb_minion") && t.contains("->")),
         "{text:?}"
     );
     assert!(
-        text.iter().any(|t| t.starts_with("refused") && t.contains("teleport")),
+        text.iter()
+            .any(|t| t.starts_with("refused") && t.contains("teleport")),
         "{text:?}"
     );
 }
@@ -329,7 +331,9 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
     let (world, plots) = ([0.0, 0.58, 0.06, 0.95], [0.62, 1.0, 0.06, 0.72]);
     let red = |r: u8, g: u8, b: u8| r >= 200 && g <= 60 && b <= 60;
     // The fire as displayed: red walking to orange, yellow and white as it oversaturates.
-    let fire = |r: u8, g: u8, b: u8| r >= 200 && (70..=235).contains(&g) && u16::from(b) + 20 < u16::from(g);
+    let fire = |r: u8, g: u8, b: u8| {
+        r >= 200 && (70..=235).contains(&g) && u16::from(b) + 20 < u16::from(g)
+    };
     let plot = |r: u8, g: u8, b: u8| r <= 60 && g >= 200 && b <= 60;
     // Screenshots every few seconds until `done` holds (the software-rendered page lags
     // the world by seconds on a loaded machine); the last one is kept.
@@ -374,7 +378,11 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
         count(img, world, red) >= 200 && count(img, world, fire) < 20
     });
     let _ = writeln!(node_in, "quit");
-    let _ = node.0.wait();
+    drop(node_in);
+    let began = std::time::Instant::now();
+    while node.0.try_wait().unwrap().is_none() && began.elapsed() < Duration::from_secs(20) {
+        std::thread::sleep(Duration::from_millis(100));
+    }
     let red_px = count(&collided, world, red);
     assert!(red_px >= 200, "red collided outlines: {red_px} pixels");
     assert!(

@@ -48,3 +48,5 @@ try {
   clearTimeout(watchdog);
   await browser.close();
 }
+// stdin would keep the process alive.
+process.exit(0);

@@ -6,8 +6,8 @@
 
 use rerun::external::re_log_types::{BlueprintActivationCommand, LogMsg};
 use rerun::external::re_sdk_types::blueprint::archetypes::{
-    Background, ContainerBlueprint, PanelBlueprint, TimePanelBlueprint, ViewBlueprint, ViewContents,
-    ViewportBlueprint, VisualBounds2D,
+    Background, ContainerBlueprint, PanelBlueprint, TimePanelBlueprint, ViewBlueprint,
+    ViewContents, ViewportBlueprint, VisualBounds2D,
 };
 use rerun::external::re_sdk_types::blueprint::components::{
     AutoLayout, AutoViews, BackgroundKind, ColumnShare, ContainerKind, IncludedContent, PanelState,
@@ -198,7 +198,10 @@ pub fn send(
     )?;
     // The views get the whole window; the side and time panels open with a click.
     for panel in ["blueprint_panel", "selection_panel"] {
-        bp.log(panel, &PanelBlueprint::new().with_state(PanelState::Collapsed))?;
+        bp.log(
+            panel,
+            &PanelBlueprint::new().with_state(PanelState::Collapsed),
+        )?;
     }
     bp.log(
         "time_panel",

@@ -106,10 +106,13 @@ pub fn outlines_by_group<'a>(
         let index = match groups.iter().position(|g| *g == body.group) {
             Some(i) => i,
             None => {
-                let k = unlisted.iter().position(|g| *g == body.group).unwrap_or_else(|| {
-                    unlisted.push(body.group.clone());
-                    unlisted.len() - 1
-                });
+                let k = unlisted
+                    .iter()
+                    .position(|g| *g == body.group)
+                    .unwrap_or_else(|| {
+                        unlisted.push(body.group.clone());
+                        unlisted.len() - 1
+                    });
                 groups.len() + k
             }
         };
@@ -164,7 +167,8 @@ pub fn particle_points(particles: &[Particle], frame: u64) -> Points {
         let [x, y] = particle.pos();
         p.positions.push([x, -y]);
         p.colors.push(display_color(particle.color_at(frame)));
-        p.radii.push((particle.size_at(frame) * 0.5).abs().max(0.05));
+        p.radii
+            .push((particle.size_at(frame) * 0.5).abs().max(0.05));
     }
     p
 }
@@ -173,7 +177,13 @@ pub fn particle_points(particles: &[Particle], frame: u64) -> Points {
 pub fn bounds_outline(bounds: [[f64; 2]; 2]) -> Vec<[f32; 2]> {
     let [lo, hi] = bounds;
     let (a, b) = (to_view(lo), to_view(hi));
-    vec![[a[0], a[1]], [b[0], a[1]], [b[0], b[1]], [a[0], b[1]], [a[0], a[1]]]
+    vec![
+        [a[0], a[1]],
+        [b[0], a[1]],
+        [b[0], b[1]],
+        [a[0], b[1]],
+        [a[0], a[1]],
+    ]
 }
 
 /// The view's visible range for the bounds, with a margin of 4% on every side:
@@ -209,7 +219,13 @@ mod tests {
         assert_eq!(strips.len(), 3);
         assert_eq!(
             strips[0],
-            vec![[8.0, -21.0], [12.0, -21.0], [12.0, -19.0], [8.0, -19.0], [8.0, -21.0]]
+            vec![
+                [8.0, -21.0],
+                [12.0, -21.0],
+                [12.0, -19.0],
+                [8.0, -19.0],
+                [8.0, -21.0]
+            ]
         );
         // The two diagonals cross at the centre (10, -20).
         for d in &strips[1..] {

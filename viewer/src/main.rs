@@ -181,7 +181,10 @@ fn run(opts: Opts) -> Result<()> {
     if opts.frames == Some(0) {
         bail!("--frames must be at least 1");
     }
-    let min_draw_interval = match opts.fps.unwrap_or(if opts.save.is_some() { 0.0 } else { 30.0 }) {
+    let min_draw_interval = match opts
+        .fps
+        .unwrap_or(if opts.save.is_some() { 0.0 } else { 30.0 })
+    {
         hz if hz > 0.0 && hz.is_finite() => Duration::from_secs_f64(1.0 / hz),
         hz if hz == 0.0 => Duration::ZERO,
         hz => bail!("--fps must be 0 or more, not {hz}"),
@@ -282,7 +285,10 @@ fn run(opts: Opts) -> Result<()> {
         sink.draw(&decoder)?;
         draw_time += last_draw.elapsed();
         if skipped > 0 && reported_skips.elapsed() >= Duration::from_secs(5) {
-            tracing::info!(skipped, "frames decoded but not drawn (the viewer was behind)");
+            tracing::info!(
+                skipped,
+                "frames decoded but not drawn (the viewer was behind)"
+            );
             reported_skips = Instant::now();
         }
     }

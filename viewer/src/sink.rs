@@ -4,12 +4,12 @@
 use std::collections::BTreeSet;
 
 use anyhow::Result;
+use rerun::{
+    Clear, Color, LineStrips2D, Points2D, Radius, RecordingStream, Scalars, SeriesLines, TextLog,
+    TextLogLevel,
+};
 use ricochet_protocol::command::{Event, WorldInfo};
 use ricochet_protocol::frame::{Body, FrameDecoder, FrameStats};
-use rerun::{
-    Clear, Color, LineStrips2D, Points2D, Radius, RecordingStream, Scalars, SeriesLines,
-    TextLog, TextLogLevel,
-};
 
 use crate::blueprint::{self, PLOTS};
 use crate::draw;
@@ -89,7 +89,10 @@ impl WorldSink {
     }
 
     fn groups(&self) -> &[String] {
-        self.info.as_ref().map(|i| i.groups.as_slice()).unwrap_or(&[])
+        self.info
+            .as_ref()
+            .map(|i| i.groups.as_slice())
+            .unwrap_or(&[])
     }
 
     /// Static bodies: logged as static data, once per snapshot (the server re-publishes
@@ -132,8 +135,7 @@ impl WorldSink {
             bytes as f64,
         ];
         for ((path, _), v) in PLOTS.iter().zip(values) {
-            self.rec
-                .log(format!("stats/{path}"), &Scalars::single(v))?;
+            self.rec.log(format!("stats/{path}"), &Scalars::single(v))?;
         }
         Ok(())
     }
@@ -156,7 +158,10 @@ impl WorldSink {
             self.dynamic_groups.clear();
             self.had_particles = false;
             self.had_emitters = false;
-            self.log_note("a new run of the world began (scene loaded or reset)", "INFO")?;
+            self.log_note(
+                "a new run of the world began (scene loaded or reset)",
+                "INFO",
+            )?;
         }
         Ok(())
     }
@@ -167,7 +172,8 @@ impl WorldSink {
         let by_group = draw::outlines_by_group(&d.bodies, self.groups());
         let now: BTreeSet<String> = by_group.iter().map(|(g, _)| g.clone()).collect();
         for gone in self.dynamic_groups.difference(&now) {
-            self.rec.log(format!("world/bodies/{gone}"), &Clear::flat())?;
+            self.rec
+                .log(format!("world/bodies/{gone}"), &Clear::flat())?;
         }
         for (group, o) in by_group {
             self.rec.log(
@@ -190,8 +196,7 @@ impl WorldSink {
             self.had_particles = !d.particles.is_empty();
         }
         if !d.emitters.is_empty() || self.had_emitters {
-            let positions: Vec<[f32; 2]> =
-                d.emitters.iter().map(|e| [e.x, -e.y]).collect();
+            let positions: Vec<[f32; 2]> = d.emitters.iter().map(|e| [e.x, -e.y]).collect();
             let labels: Vec<String> = d
                 .emitters
                 .iter()
