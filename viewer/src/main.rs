@@ -285,9 +285,9 @@ fn run(opts: Opts) -> Result<()> {
         sink.draw(&decoder)?;
         draw_time += last_draw.elapsed();
         if skipped > 0 && reported_skips.elapsed() >= Duration::from_secs(5) {
-            tracing::info!(
+            tracing::debug!(
                 skipped,
-                "frames decoded but not drawn (the viewer was behind)"
+                "frames decoded but not drawn (the --fps cap, or a slow sink)"
             );
             reported_skips = Instant::now();
         }
