@@ -197,9 +197,12 @@ fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
     );
 }
 
+/// A decoded screenshot: RGBA8 pixels, width, height.
+type Image = (Vec<u8>, u32, u32);
+
 /// Pixels of `img` (RGBA8) inside the box `[x0, x1) x [y0, y1)` (fractions of the size)
 /// for which `pred` holds.
-fn count(img: &(Vec<u8>, u32, u32), frac: [f32; 4], pred: impl Fn(u8, u8, u8) -> bool) -> usize {
+fn count(img: &Image, frac: [f32; 4], pred: impl Fn(u8, u8, u8) -> bool) -> usize {
     let (data, w, h) = img;
     let (x0, x1) = ((frac[0] * *w as f32) as u32, (frac[1] * *w as f32) as u32);
     let (y0, y1) = ((frac[2] * *h as f32) as u32, (frac[3] * *h as f32) as u32);
@@ -213,7 +216,7 @@ fn count(img: &(Vec<u8>, u32, u32), frac: [f32; 4], pred: impl Fn(u8, u8, u8) ->
     n
 }
 
-fn decode_png(path: &Path) -> (Vec<u8>, u32, u32) {
+fn decode_png(path: &Path) -> Image {
     let decoder = png::Decoder::new(BufReader::new(std::fs::File::open(path).unwrap()));
     let mut reader = decoder.read_info().unwrap();
     let mut buf = vec![0; reader.output_buffer_size().unwrap()];
@@ -337,7 +340,7 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
     let plot = |r: u8, g: u8, b: u8| r <= 60 && g >= 200 && b <= 60;
     // Screenshots every few seconds until `done` holds (the software-rendered page lags
     // the world by seconds on a loaded machine); the last one is kept.
-    let mut shoot = |name: &str, done: &dyn Fn(&(Vec<u8>, u32, u32)) -> bool| {
+    let mut shoot = |name: &str, done: &dyn Fn(&Image) -> bool| {
         let path = dir.join(name);
         let began = std::time::Instant::now();
         loop {

@@ -186,7 +186,7 @@ fn run(opts: Opts) -> Result<()> {
         .unwrap_or(if opts.save.is_some() { 0.0 } else { 30.0 })
     {
         hz if hz > 0.0 && hz.is_finite() => Duration::from_secs_f64(1.0 / hz),
-        hz if hz == 0.0 => Duration::ZERO,
+        0.0 => Duration::ZERO,
         hz => bail!("--fps must be 0 or more, not {hz}"),
     };
     let idle_exit = opts
