@@ -88,32 +88,18 @@ impl WorldSink {
         Ok(())
     }
 
-    fn groups(&self) -> &[String] {
-        self.info
-            .as_ref()
-            .map(|i| i.groups.as_slice())
-            .unwrap_or(&[])
-    }
-
     /// Static bodies: logged as static data, once per snapshot (the server re-publishes
     /// the snapshot only when they change).
     pub fn log_statics(&mut self, statics: &[Body]) -> Result<()> {
-        let by_group = draw::outlines_by_group(statics, self.groups());
-        let now: BTreeSet<String> = by_group.iter().map(|(g, _)| g.clone()).collect();
-        for gone in self.static_groups.difference(&now) {
-            self.rec
-                .log_static(format!("world/statics/{gone}"), &Clear::flat())?;
-        }
-        for (group, o) in by_group {
-            self.rec.log_static(
-                format!("world/statics/{group}"),
-                &LineStrips2D::new(o.strips)
-                    .with_colors(o.colors.into_iter().map(color))
-                    .with_radii([Radius::new_ui_points(LINE_RADIUS)]),
-            )?;
-        }
-        self.static_groups = now;
-        Ok(())
+        let groups = self.info.as_ref().map_or(&[][..], |i| &i.groups[..]);
+        log_outlines(
+            &self.rec,
+            "world/statics",
+            true,
+            statics,
+            groups,
+            &mut self.static_groups,
+        )
     }
 
     /// The figures of one frame's step (every frame, drawn or not).
@@ -169,21 +155,15 @@ impl WorldSink {
     /// Draws the state the decoder holds now: bodies per group, particles, emitters.
     pub fn draw(&mut self, d: &FrameDecoder) -> Result<()> {
         self.set_time(d.frame, d.time)?;
-        let by_group = draw::outlines_by_group(&d.bodies, self.groups());
-        let now: BTreeSet<String> = by_group.iter().map(|(g, _)| g.clone()).collect();
-        for gone in self.dynamic_groups.difference(&now) {
-            self.rec
-                .log(format!("world/bodies/{gone}"), &Clear::flat())?;
-        }
-        for (group, o) in by_group {
-            self.rec.log(
-                format!("world/bodies/{group}"),
-                &LineStrips2D::new(o.strips)
-                    .with_colors(o.colors.into_iter().map(color))
-                    .with_radii([Radius::new_ui_points(LINE_RADIUS)]),
-            )?;
-        }
-        self.dynamic_groups = now;
+        let groups = self.info.as_ref().map_or(&[][..], |i| &i.groups[..]);
+        log_outlines(
+            &self.rec,
+            "world/bodies",
+            false,
+            &d.bodies,
+            groups,
+            &mut self.dynamic_groups,
+        )?;
 
         if !d.particles.is_empty() || self.had_particles {
             let p = draw::particle_points(&d.particles, d.frame);
@@ -251,6 +231,35 @@ impl WorldSink {
             .log("events", &TextLog::new(text).with_level(level))?;
         Ok(())
     }
+}
+
+/// One `LineStrips2D` per group of `bodies` under `root/<group>` (static data or at the
+/// current time), and a clear for each group in `logged` that has no body left; `logged`
+/// becomes the groups logged now.
+fn log_outlines(
+    rec: &RecordingStream,
+    root: &str,
+    as_static: bool,
+    bodies: &[Body],
+    groups: &[String],
+    logged: &mut BTreeSet<String>,
+) -> Result<()> {
+    let by_group = draw::outlines_by_group(bodies, groups);
+    let now: BTreeSet<String> = by_group.iter().map(|(g, _)| g.clone()).collect();
+    for gone in logged.difference(&now) {
+        rec.log_with_static(format!("{root}/{gone}"), as_static, &Clear::flat())?;
+    }
+    for (group, o) in by_group {
+        rec.log_with_static(
+            format!("{root}/{group}"),
+            as_static,
+            &LineStrips2D::new(o.strips)
+                .with_colors(o.colors.into_iter().map(color))
+                .with_radii([Radius::new_ui_points(LINE_RADIUS)]),
+        )?;
+    }
+    *logged = now;
+    Ok(())
 }
 
 fn color(c: [u8; 4]) -> Color {
