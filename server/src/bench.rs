@@ -10,6 +10,7 @@ use glam::{DVec2, Vec2};
 
 use crate::dynamics::config::{Solver, WorldConfig};
 use crate::dynamics::BodyDef;
+use crate::dynamics::BroadPhase;
 use crate::geometry::Shape;
 use crate::particles::ParticleDef;
 use crate::world::World;
@@ -112,31 +113,59 @@ pub fn pyramid_case(levels: u32, setting: &str, config: WorldConfig, steps: u64)
     }
 }
 
-/// The settings the pyramid is measured under.
+/// The settings the pyramid is measured under: the chapter's relaxation, the impulse
+/// solver with the sweep broad phase (before the grid), then with the grid, split
+/// impulses and soft contacts.
 pub fn pyramid_settings() -> Vec<(String, WorldConfig)> {
     let base = WorldConfig::default();
-    let mut out = vec![(
-        "relaxation 15 (chapter)".to_string(),
-        WorldConfig {
-            solver: Solver::Relaxation,
-            ..base.clone()
-        },
-    )];
-    for (iterations, substeps) in [(4, 1), (8, 1), (4, 2), (8, 2)] {
-        out.push((
-            format!(
-                "impulses {iterations} it, {substeps} sub-step{}",
-                if substeps > 1 { "s" } else { "" }
-            ),
+    let impulses = |iterations: u32, substeps: u32| WorldConfig {
+        solver: Solver::Impulses,
+        impulse_iterations: iterations,
+        substeps,
+        ..base.clone()
+    };
+    let grid = |iterations: u32, substeps: u32| WorldConfig {
+        broad_phase: BroadPhase::Grid,
+        ..impulses(iterations, substeps)
+    };
+    let split = |iterations: u32, substeps: u32| WorldConfig {
+        split_impulses: true,
+        baumgarte: 0.5,
+        slop: 0.0001,
+        ..grid(iterations, substeps)
+    };
+    vec![
+        (
+            "relaxation 15 (chapter), sweep".into(),
             WorldConfig {
-                solver: Solver::Impulses,
-                impulse_iterations: iterations,
-                substeps,
+                solver: Solver::Relaxation,
                 ..base.clone()
             },
-        ));
-    }
-    out
+        ),
+        ("impulses 4 it, 2 sub-steps, sweep".into(), impulses(4, 2)),
+        ("impulses 4 it, 2 sub-steps, grid".into(), grid(4, 2)),
+        ("impulses 8 it, 1 sub-step, grid".into(), grid(8, 1)),
+        (
+            "impulses 6 it, 1 sub-step, split (baumgarte 0.5, slop 1e-4), grid".into(),
+            split(6, 1),
+        ),
+        (
+            "impulses 4 it, 2 sub-steps, split (baumgarte 0.5, slop 1e-4), grid".into(),
+            split(4, 2),
+        ),
+        (
+            "impulses 8 it, 2 sub-steps, split (baumgarte 0.5, slop 1e-4), grid".into(),
+            split(8, 2),
+        ),
+        (
+            "soft (30 Hz) 1 it + 1 relax, 4 sub-steps, grid".into(),
+            WorldConfig {
+                relax_iterations: 1,
+                contact_hertz: 30.0,
+                ..grid(1, 4)
+            },
+        ),
+    ]
 }
 
 /// `count` particles of zero gravity scattered over the arena, none expiring, moving.

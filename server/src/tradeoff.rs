@@ -61,6 +61,31 @@ pub fn settings() -> Vec<Setting> {
             c.solver = Solver::Impulses;
             c.warm_starting = false;
         }),
+        s("impulses 6 it, split, grid", &|c| {
+            c.solver = Solver::Impulses;
+            c.impulse_iterations = 6;
+            c.split_impulses = true;
+            c.baumgarte = 0.5;
+            c.slop = 0.0001;
+            c.broad_phase = BroadPhase::Grid;
+        }),
+        s("impulses 4 it, 2 sub-steps, split, grid", &|c| {
+            c.solver = Solver::Impulses;
+            c.impulse_iterations = 4;
+            c.substeps = 2;
+            c.split_impulses = true;
+            c.baumgarte = 0.5;
+            c.slop = 0.0001;
+            c.broad_phase = BroadPhase::Grid;
+        }),
+        s("soft 1 it + 1 relax, 4 sub-steps, grid", &|c| {
+            c.solver = Solver::Impulses;
+            c.impulse_iterations = 1;
+            c.relax_iterations = 1;
+            c.substeps = 4;
+            c.contact_hertz = 30.0;
+            c.broad_phase = BroadPhase::Grid;
+        }),
     ]
 }
 

@@ -20,8 +20,9 @@ use crate::dynamics::broad_phase::{
 use crate::dynamics::ccd;
 use crate::dynamics::config::Solver;
 use crate::dynamics::config::WorldConfig;
-use crate::dynamics::impulse::{self, ContactCache, ImpulseParams};
-use crate::dynamics::integrate::{integrate_bodies, integrate_velocities};
+use crate::dynamics::impulse::{self, ContactCache, ImpulseParams, SolverBuffers};
+use crate::dynamics::integrate::{self, integrate_bodies};
+use crate::dynamics::pairs::{Pair, PairSet};
 use crate::dynamics::relaxation::{self, RelaxationParams};
 use crate::dynamics::sleep;
 use crate::geometry::{collide, Shape};
@@ -126,6 +127,11 @@ pub struct World {
     /// Bodies flagged collided in the last step, to clear at the next.
     flagged: Vec<u32>,
     contact_cache: ContactCache,
+    /// The persistent pairs of the grid broad phase.
+    pair_set: PairSet,
+    /// Pairs handed to the impulse solver by the other broad phases.
+    solver_pairs: Vec<Pair>,
+    solver_buffers: SolverBuffers,
     /// Every body's id, to refuse duplicates without a scan.
     ids: std::collections::HashSet<String>,
     /// Bodies asleep after the last step.
@@ -160,6 +166,9 @@ impl World {
             behaving: Vec::new(),
             flagged: Vec::new(),
             contact_cache: ContactCache::default(),
+            pair_set: PairSet::default(),
+            solver_pairs: Vec::new(),
+            solver_buffers: SolverBuffers::default(),
             ids: Default::default(),
             sleeping: 0,
         }
@@ -355,6 +364,8 @@ impl World {
             b: sb,
             resolve,
         });
+        // The grid broad phase keeps pairs of the groups that resolve: look again.
+        self.layout_revision += 1;
         Ok(())
     }
 
@@ -509,7 +520,14 @@ impl World {
         let dt = self.config.dt;
         let mut pairs = Vec::new();
         let mut some = Vec::new();
+        if self.config.broad_phase == BroadPhase::Grid {
+            self.update_pair_set(dt);
+            pairs.extend(self.pair_set.pairs.iter().map(|p| (p.a, p.b)));
+        }
         for k in 0..self.interactions.len() {
+            if self.config.broad_phase == BroadPhase::Grid {
+                break;
+            }
             let inter = self.interactions[k];
             if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
                 self.candidates(a, b, dt, &mut some);
@@ -570,9 +588,13 @@ impl World {
                                 );
                                 relaxation::relax(&mut self.bodies, ga, gb, params)
                             }
-                            BroadPhase::Sweep => {
+                            BroadPhase::Sweep | BroadPhase::Grid => {
                                 let mut pairs = std::mem::take(&mut self.pairs);
-                                self.candidates(a, b, dt, &mut pairs);
+                                if self.config.broad_phase == BroadPhase::Grid {
+                                    self.grid_candidates(a, b, dt, &mut pairs);
+                                } else {
+                                    self.candidates(a, b, dt, &mut pairs);
+                                }
                                 let report =
                                     relaxation::relax_pairs(&mut self.bodies, &pairs, params);
                                 self.pairs = pairs;
@@ -680,6 +702,47 @@ impl World {
         self.static_grids[g].1.is_some()
     }
 
+    /// The group pairs of the resolving interactions between groups.
+    fn resolving(&self) -> Vec<(GroupId, GroupId)> {
+        self.interactions
+            .iter()
+            .filter_map(|it| match (it.a, it.b, it.resolve) {
+                (Side::Group(a), Side::Group(b), true) => Some((a, b)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Brings the grid broad phase's persistent pairs up to date.
+    fn update_pair_set(&mut self, dt: f64) {
+        let resolving = self.resolving();
+        self.pair_set.update(
+            &self.bodies,
+            self.layout_revision,
+            &resolving,
+            &self.movers,
+            dt,
+        );
+    }
+
+    /// Candidate pairs of the interaction between groups `a` and `b` from the grid broad
+    /// phase, in all-pairs order (group members are in body order).
+    fn grid_candidates(&mut self, a: GroupId, b: GroupId, dt: f64, out: &mut Vec<(u32, u32)>) {
+        self.update_pair_set(dt);
+        out.clear();
+        let bodies = &self.bodies;
+        for p in &self.pair_set.pairs {
+            let (ga, gb) = (bodies[p.a as usize].group, bodies[p.b as usize].group);
+            if (ga, gb) == (a, b) {
+                out.push((p.a, p.b));
+            }
+            if (gb, ga) == (a, b) {
+                out.push((p.b, p.a));
+            }
+        }
+        out.sort_unstable();
+    }
+
     /// One frame of the impulse solver (all its sub-steps) over the contacts of every rigid
     /// interaction.
     fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
@@ -713,31 +776,52 @@ impl World {
                     self.candidates(a, b, h, &mut some);
                     all.extend_from_slice(&some);
                 }
+                BroadPhase::Grid => {}
             }
         }
         self.sweep_out = some;
+        let config = &self.config;
         let params = ImpulseParams {
-            iterations: self.config.impulse_iterations,
-            warm_starting: self.config.warm_starting,
-            baumgarte: self.config.baumgarte,
-            slop: self.config.slop,
+            iterations: config.impulse_iterations,
+            relax_iterations: config.relax_iterations,
+            warm_starting: config.warm_starting,
+            baumgarte: config.baumgarte,
+            slop: config.slop,
+            contact_hertz: config.contact_hertz,
+            contact_damping: config.contact_damping,
+            split_impulses: config.split_impulses,
             dt: h,
+            substeps: config.substeps,
+        };
+        let grid = config.broad_phase == BroadPhase::Grid;
+        let mut pairs = if grid {
+            self.update_pair_set(h);
+            std::mem::take(&mut self.pair_set.pairs)
+        } else {
+            let mut pairs = std::mem::take(&mut self.solver_pairs);
+            self.contact_cache.pairs(&self.bodies, &mut all, &mut pairs);
+            pairs
         };
         let config = &self.config;
-        let movers = &self.movers;
         let report = impulse::solve_frame(
             &mut self.bodies,
-            &mut all,
+            &mut pairs,
             params,
-            config.substeps,
-            &mut self.contact_cache,
-            movers,
-            |bodies, h| integrate_velocities(bodies, movers, config, h),
+            &mut self.solver_buffers,
+            &self.movers,
+            |b| integrate::acceleration(b, config),
+            &mut self.flagged,
         );
+        if grid {
+            self.pair_set.pairs = pairs;
+        } else {
+            self.contact_cache.store(&self.bodies, &pairs);
+            self.solver_pairs = pairs;
+        }
         stats.contacts += report.contacts;
-        stats.relaxation_iterations += (config.impulse_iterations * config.substeps) as u64;
+        stats.relaxation_iterations +=
+            ((config.impulse_iterations + config.relax_iterations) * config.substeps) as u64;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
-        flag_pairs(&self.bodies, &all, &mut self.flagged);
         self.pairs = all;
     }
 
@@ -996,6 +1080,10 @@ impl World {
                     .ok_or(ActionError::NothingSelected)?;
                 body.pos = to;
                 body.vel = DVec2::ZERO;
+                if body.is_static() && body.asleep.is_none() {
+                    self.layout_revision += 1;
+                    self.statics_revision += 1;
+                }
                 Ok(ActionOutcome {
                     ids: vec![body.id.clone()],
                 })
@@ -1095,17 +1183,6 @@ impl World {
         ActionError::UnknownPreset {
             name: name.to_string(),
             known: self.presets.names().collect::<Vec<_>>().join(", "),
-        }
-    }
-}
-
-/// Adds the bodies of `pairs` that are flagged collided to `flagged`.
-fn flag_pairs(bodies: &[Body], pairs: &[(u32, u32)], flagged: &mut Vec<u32>) {
-    for &(i, j) in pairs {
-        for k in [i, j] {
-            if bodies[k as usize].collided {
-                flagged.push(k);
-            }
         }
     }
 }

@@ -117,6 +117,11 @@ enum Command {
         /// Also write the figures as CSV.
         #[arg(long)]
         csv: Option<PathBuf>,
+        /// Measure the pyramid under this setting instead of the listed ones: world
+        /// parameters as NAME=VALUE over the defaults (repeatable), e.g.
+        /// `--set solver=impulses --set broad_phase=grid --set substeps=2`.
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<String>,
     },
     /// Measure what each solver setting costs and buys.
     ///
@@ -202,7 +207,8 @@ fn main() -> Result<()> {
             steps,
             only,
             csv,
-        } => bench(levels, steps, only.as_deref(), csv.as_deref()),
+            set,
+        } => bench(levels, steps, only.as_deref(), csv.as_deref(), &set),
         Command::Tradeoff { out } => {
             std::fs::create_dir_all(&out)
                 .with_context(|| format!("cannot create {}", out.display()))?;
@@ -250,8 +256,23 @@ fn main() -> Result<()> {
     }
 }
 
-fn bench(levels: u32, steps: u64, only: Option<&str>, csv: Option<&Path>) -> Result<()> {
+fn bench(
+    levels: u32,
+    steps: u64,
+    only: Option<&str>,
+    csv: Option<&Path>,
+    set: &[String],
+) -> Result<()> {
     use ricochet::bench::*;
+    let settings = if set.is_empty() {
+        pyramid_settings()
+    } else {
+        let mut config = ricochet::dynamics::WorldConfig::default();
+        for s in set {
+            config.set_from_str(s)?;
+        }
+        vec![(set.join(" "), config)]
+    };
     let wanted = |name: &str| only.is_none_or(|o| name.contains(o));
     let mut figures = Vec::new();
     let mut report = |f: Figure| {
@@ -263,7 +284,7 @@ fn bench(levels: u32, steps: u64, only: Option<&str>, csv: Option<&Path>) -> Res
     };
     println!("| case | setting | steps | median ms/step | figure |\n|---|---|---|---|---|");
     if wanted("pyramid") {
-        for (name, config) in pyramid_settings() {
+        for (name, config) in settings {
             // The chapter's relaxation is too slow for 500 steps of the large pyramid.
             let n = if config.solver == ricochet::dynamics::Solver::Relaxation && levels > 20 {
                 steps.min(20)

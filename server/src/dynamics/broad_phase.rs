@@ -21,6 +21,9 @@ pub enum BroadPhase {
     /// Sweep and prune along x, once per step.
     #[default]
     Sweep,
+    /// A uniform grid of fattened boxes whose pairs are kept between steps and looked at
+    /// again only for bodies that left their fat box ([`super::pairs`]).
+    Grid,
 }
 
 impl BroadPhase {
@@ -28,6 +31,7 @@ impl BroadPhase {
         match self {
             BroadPhase::AllPairs => "all_pairs",
             BroadPhase::Sweep => "sweep",
+            BroadPhase::Grid => "grid",
         }
     }
 }

@@ -91,6 +91,19 @@ pub struct WorldConfig {
     pub baumgarte: f64,
     /// Penetration the impulse solver leaves alone, relative to the smaller body's size.
     pub slop: f64,
+    /// Velocity passes of the impulse solver per sub-step without position bias, after
+    /// the positions move: they take back the velocity the bias added (Box2D v3's relax
+    /// iterations), so pushing out does not make bodies jump.
+    pub relax_iterations: u32,
+    /// 0: rigid contacts pushed out by `baumgarte`. Above 0: soft contacts, springs of
+    /// this frequency in Hz (capped at a quarter of the sub-step rate; twice it against
+    /// static bodies), damped by `contact_damping` (Box2D v3's soft step).
+    pub contact_hertz: f64,
+    /// Damping ratio of soft contacts (above 1: no overshoot).
+    pub contact_damping: f64,
+    /// Rigid contacts push overlapping bodies apart through pseudo-velocities that move
+    /// positions and are then dropped (split impulses), so pushing out adds no momentum.
+    pub split_impulses: bool,
     /// Continuous collision for the relaxation solver: a body that moves more than half
     /// its size in a step is swept against the shapes of its interactions and stopped at
     /// the first it would pass through (the impulse solver's speculative contacts already
@@ -125,6 +138,10 @@ impl Default for WorldConfig {
             warm_starting: true,
             baumgarte: 0.2,
             slop: 0.001,
+            relax_iterations: 0,
+            contact_hertz: 0.0,
+            contact_damping: 10.0,
+            split_impulses: false,
             ccd: false,
             sleeping: false,
             sleep_speed: 0.05,
@@ -168,6 +185,10 @@ impl WorldConfig {
         "warm_starting",
         "baumgarte",
         "slop",
+        "relax_iterations",
+        "contact_hertz",
+        "contact_damping",
+        "split_impulses",
         "ccd",
         "sleeping",
         "sleep_speed",
@@ -236,6 +257,20 @@ impl WorldConfig {
                 "impulse_iterations",
                 format!("{} must be 1 to 10000", self.impulse_iterations),
             ));
+        }
+        if self.relax_iterations > 10_000 {
+            return Err(invalid(
+                "relax_iterations",
+                format!("{} must be 0 to 10000", self.relax_iterations),
+            ));
+        }
+        for (name, v) in [
+            ("contact_hertz", self.contact_hertz),
+            ("contact_damping", self.contact_damping),
+        ] {
+            if !(v.is_finite() && (0.0..=1e6).contains(&v)) {
+                return Err(invalid(name, format!("{v} must be a number from 0 to 1e6")));
+            }
         }
         if !(0.0..=1.0).contains(&self.baumgarte) {
             return Err(invalid(

@@ -21,6 +21,7 @@ use std::collections::HashMap;
 use glam::DVec2;
 
 use super::body::{Body, BodyKey};
+pub use super::pairs::Pair;
 use crate::geometry::separation;
 
 /// The fastest the position bias pushes overlapping bodies apart, in body sizes per
@@ -35,43 +36,6 @@ pub const SPECULATIVE_GAP: f64 = 0.02;
 
 /// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
-
-/// The solver's settings for one sub-step.
-#[derive(Clone, Copy, Debug)]
-pub struct ImpulseParams {
-    pub iterations: u32,
-    pub warm_starting: bool,
-    pub baumgarte: f64,
-    pub slop: f64,
-    pub dt: f64,
-}
-
-/// One contact, as the inner loop reads it.
-#[derive(Clone, Copy, Debug)]
-struct Contact {
-    a: u32,
-    b: u32,
-    normal: DVec2,
-    inv_a: f64,
-    inv_b: f64,
-    /// 1 / (inv_a + inv_b).
-    mass: f64,
-    friction: f64,
-    /// Separation at the start of the frame (negative: penetration).
-    gap: f64,
-    /// Penetration left alone.
-    slop: f64,
-    /// Normal velocity of the restitution bounce (0 for a resting contact).
-    bounce: f64,
-    start_a: DVec2,
-    start_b: DVec2,
-    /// Cap of the position bias velocity.
-    max_push: f64,
-    /// Found apart (beyond the slop): the bodies may close the gap, no more.
-    speculative: bool,
-    normal_impulse: f64,
-    tangent_impulse: f64,
-}
 
 /// A fast hash of small integer keys (the multiply-rotate of rustc's FxHasher). Only
 /// lookups use it, never iteration order, so results stay deterministic.
@@ -95,9 +59,110 @@ impl std::hash::Hasher for KeyHasher {
     }
 }
 
-type KeyMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<KeyHasher>>;
+/// A hash map keyed by small integers.
+pub type KeyMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<KeyHasher>>;
 
-/// Impulses of the last step, for warm starting.
+/// The solver's settings for one frame.
+#[derive(Clone, Copy, Debug)]
+pub struct ImpulseParams {
+    /// Biased velocity iterations per sub-step.
+    pub iterations: u32,
+    /// Velocity iterations without position bias per sub-step, after the positions move
+    /// (they take out the velocity the bias added, so pushing out does not launch).
+    pub relax_iterations: u32,
+    pub warm_starting: bool,
+    /// Rigid contacts: share of the penetration beyond the slop removed per sub-step.
+    pub baumgarte: f64,
+    pub slop: f64,
+    /// Soft contacts when above 0: the contact spring's frequency (Hz), capped at a
+    /// quarter of the sub-step rate; contacts with a static body get twice it.
+    pub contact_hertz: f64,
+    /// The soft contact's damping ratio.
+    pub contact_damping: f64,
+    /// Push overlapping bodies apart with pseudo-velocities that move positions and are
+    /// then forgotten (split impulses), instead of through their velocities: pushing out
+    /// adds no momentum, so a deep pile does not bounce back.
+    pub split_impulses: bool,
+    /// The frame's time step.
+    pub dt: f64,
+    pub substeps: u32,
+}
+
+/// One body as the solver streams it.
+#[derive(Clone, Copy, Debug)]
+struct SolverBody {
+    vel: DVec2,
+    /// Push-out velocity of split impulses, applied to the position and dropped.
+    pseudo: DVec2,
+    /// Displacement since the start of the frame.
+    delta: DVec2,
+    inv_mass: f64,
+}
+
+/// One contact, as the inner loop reads it.
+#[derive(Clone, Copy, Debug)]
+struct Contact {
+    a: u32,
+    b: u32,
+    normal: DVec2,
+    /// 1 / (inv_a + inv_b).
+    mass: f64,
+    friction: f64,
+    /// Separation at the start of the frame (negative: penetration).
+    gap: f64,
+    /// Penetration left alone.
+    slop: f64,
+    /// Normal velocity of the restitution bounce (0 for a resting contact).
+    bounce: f64,
+    /// Cap of the position bias velocity.
+    max_push: f64,
+    normal_impulse: f64,
+    tangent_impulse: f64,
+    /// Accumulated split impulse of the sub-step.
+    pseudo_impulse: f64,
+    /// Index of its pair.
+    pair: u32,
+    /// Found apart (beyond the slop): the bodies may close the gap, no more.
+    speculative: bool,
+    /// One of the two bodies is static (soft contacts are stiffer there).
+    fixed: bool,
+}
+
+/// How one pass pushes touching contacts apart.
+#[derive(Clone, Copy, Debug)]
+struct Bias {
+    /// Push-out velocity per unit of penetration (beyond the slop).
+    rate: f64,
+    /// Scales the impulse (soft contacts: below 1).
+    mass_scale: f64,
+    /// Share of the accumulated impulse taken back each pass (soft contacts).
+    impulse_scale: f64,
+}
+
+impl Bias {
+    const NONE: Bias = Bias {
+        rate: 0.0,
+        mass_scale: 1.0,
+        impulse_scale: 0.0,
+    };
+
+    /// The soft-contact coefficients of a spring of `hertz` with damping ratio `zeta`
+    /// integrated over `h` (Box2D v3's soft step).
+    fn soft(hertz: f64, zeta: f64, h: f64) -> Bias {
+        let omega = 2.0 * std::f64::consts::PI * hertz;
+        let a1 = 2.0 * zeta + h * omega;
+        let a2 = h * omega * a1;
+        let a3 = 1.0 / (1.0 + a2);
+        Bias {
+            rate: omega / a1,
+            mass_scale: a2 * a3,
+            impulse_scale: a3,
+        }
+    }
+}
+
+/// Impulses of the last step, for warm starting, when pairs are not kept between steps
+/// (the all-pairs and sweep broad phases).
 #[derive(Clone, Debug, Default)]
 pub struct ContactCache {
     impulses: KeyMap<(BodyKey, BodyKey), (DVec2, f64, f64)>,
@@ -107,52 +172,117 @@ impl ContactCache {
     pub fn clear(&mut self) {
         self.impulses.clear();
     }
+
+    /// Pairs for `candidates` (a pair listed in both orders counts once) with last
+    /// step's impulses.
+    pub fn pairs(&self, bodies: &[Body], candidates: &mut Vec<(u32, u32)>, out: &mut Vec<Pair>) {
+        for p in candidates.iter_mut() {
+            if p.0 > p.1 {
+                *p = (p.1, p.0);
+            }
+        }
+        candidates.sort_unstable();
+        candidates.dedup();
+        out.clear();
+        out.extend(candidates.iter().map(|&(a, b)| {
+            let mut p = Pair::new(a, b);
+            let key = (bodies[a as usize].key, bodies[b as usize].key);
+            if let Some(&(n, jn, jt)) = self.impulses.get(&key) {
+                p.normal = n;
+                p.normal_impulse = jn;
+                p.tangent_impulse = jt;
+            }
+            p
+        }));
+    }
+
+    /// Keeps the impulses the solver left on `pairs`.
+    pub fn store(&mut self, bodies: &[Body], pairs: &[Pair]) {
+        self.impulses.clear();
+        for p in pairs {
+            if p.normal_impulse != 0.0 || p.tangent_impulse != 0.0 {
+                let key = (bodies[p.a as usize].key, bodies[p.b as usize].key);
+                self.impulses
+                    .insert(key, (p.normal, p.normal_impulse, p.tangent_impulse));
+            }
+        }
+    }
 }
 
-/// What the solver did in one sub-step.
+/// What the solver did in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ImpulseReport {
     pub contacts: u64,
     pub deepest: f64,
 }
 
-/// One frame of the impulse solver: finds the contacts among `pairs` once (body indices;
-/// a pair listed in both orders counts once), then runs `substeps` sub-steps of
-/// `dt / substeps`: `integrate_velocities(h)`, warm start, velocity iterations, and
-/// `p += v h` for the dynamic bodies listed in `movers`. Within the frame a contact's separation is tracked from how far its two
-/// bodies moved along its normal, so detection runs once per frame however many sub-steps
-/// there are (in the manner of Box2D v3's soft step).
+/// Reusable buffers of the solver.
+#[derive(Clone, Debug, Default)]
+pub struct SolverBuffers {
+    bodies: Vec<SolverBody>,
+    /// Velocity each body gains per second (gravity).
+    accel: Vec<DVec2>,
+    contacts: Vec<Contact>,
+}
+
+/// One frame of the impulse solver over the candidate `pairs` (body indices, `a < b`,
+/// each carrying last step's impulses, which it leaves this step's in). Contacts are found
+/// once; then `substeps` sub-steps of `dt / substeps` each run: gravity, warm start,
+/// `iterations` biased passes, `p += v h` for the bodies listed in `movers`, and
+/// `relax_iterations` passes without bias. Within the frame a contact's separation is
+/// tracked from how far its two bodies moved along its normal, so detection runs once per
+/// frame however many sub-steps there are (in the manner of Box2D v3's soft step).
+/// Bodies whose contact pushed are flagged collided and listed in `flagged`.
+#[allow(clippy::too_many_arguments)]
 pub fn solve_frame(
     bodies: &mut [Body],
-    pairs: &mut Vec<(u32, u32)>,
+    pairs: &mut [Pair],
     params: ImpulseParams,
-    substeps: u32,
-    cache: &mut ContactCache,
+    buffers: &mut SolverBuffers,
     movers: &[u32],
-    mut integrate_velocities: impl FnMut(&mut [Body], f64),
+    accel: impl Fn(&Body) -> DVec2,
+    flagged: &mut Vec<u32>,
 ) -> ImpulseReport {
-    // One contact per unordered pair, in a deterministic order.
-    for p in pairs.iter_mut() {
-        if p.0 > p.1 {
-            *p = (p.1, p.0);
-        }
-    }
-    pairs.sort_unstable();
-    pairs.dedup();
-
     let frame_dt = params.dt;
-    let substeps = substeps.max(1);
+    let substeps = params.substeps.max(1);
     let h = frame_dt / substeps as f64;
     let inv_h = 1.0 / h;
     let mut report = ImpulseReport::default();
-    let mut contacts = Vec::with_capacity(pairs.len());
-    for &(i, j) in pairs.iter() {
+
+    let SolverBuffers {
+        bodies: sb,
+        accel: gain,
+        contacts,
+    } = buffers;
+    sb.clear();
+    sb.extend(bodies.iter().map(|b| SolverBody {
+        vel: b.vel,
+        pseudo: DVec2::ZERO,
+        delta: DVec2::ZERO,
+        inv_mass: b.inv_mass,
+    }));
+    gain.clear();
+    gain.extend(movers.iter().map(|&i| {
+        let b = &bodies[i as usize];
+        if b.inv_mass > 0.0 {
+            accel(b)
+        } else {
+            DVec2::ZERO
+        }
+    }));
+
+    contacts.clear();
+    for (k, pair) in pairs.iter_mut().enumerate() {
+        let (i, j) = (pair.a, pair.b);
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
+        let (old_n, jn, jt) = (pair.normal, pair.normal_impulse, pair.tangent_impulse);
+        pair.normal_impulse = 0.0;
+        pair.tangent_impulse = 0.0;
         if a.inv_mass + b.inv_mass == 0.0 {
             continue;
         }
         let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
-        let approach = (b.vel - a.vel).dot(n);
+        let rel = b.vel - a.vel;
         let size = a
             .shape
             .half_extents()
@@ -160,130 +290,206 @@ pub fn solve_frame(
             .min(b.shape.half_extents().min_element())
             * 2.0;
         // Too far apart to meet within the frame: no contact.
-        if gap > (b.vel - a.vel).length() * frame_dt + 0.1 * size {
+        if gap > rel.length() * frame_dt + 0.1 * size {
             continue;
         }
         if gap <= 0.0 {
             report.contacts += 1;
             report.deepest = report.deepest.max(-gap);
         }
+        let approach = rel.dot(n);
         let bounce = if approach < -RESTITUTION_SPEED {
             -a.restitution.min(b.restitution) * approach
         } else {
             0.0
         };
-        let mut c = Contact {
+        let slop = params.slop * size;
+        // Only contacts that touch start from their last impulses.
+        let warm = params.warm_starting && gap <= slop && old_n.dot(n) > 0.99;
+        contacts.push(Contact {
             a: i,
             b: j,
             normal: n,
-            inv_a: a.inv_mass,
-            inv_b: b.inv_mass,
             mass: 1.0 / (a.inv_mass + b.inv_mass),
             friction: (a.friction * b.friction).sqrt(),
             gap,
-            slop: params.slop * size,
+            slop,
             bounce,
-            start_a: a.pos,
-            start_b: b.pos,
             max_push: MAX_PUSH_OUT * size,
+            normal_impulse: if warm { jn } else { 0.0 },
+            tangent_impulse: if warm { jt } else { 0.0 },
+            pseudo_impulse: 0.0,
+            pair: k as u32,
             speculative: gap > SPECULATIVE_GAP * size,
-            normal_impulse: 0.0,
-            tangent_impulse: 0.0,
-        };
-        // Only contacts that touch start from their last impulses.
-        if params.warm_starting && gap <= c.slop {
-            if let Some(&(old_n, jn, jt)) = cache.impulses.get(&(a.key, b.key)) {
-                if old_n.dot(n) > 0.99 {
-                    c.normal_impulse = jn;
-                    c.tangent_impulse = jt;
-                }
-            }
-        }
-        contacts.push(c);
+            fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
+        });
     }
 
+    let (push, push_fixed) = if params.contact_hertz > 0.0 {
+        let hertz = params.contact_hertz.min(0.25 / h);
+        (
+            Bias::soft(hertz, params.contact_damping, h),
+            Bias::soft(2.0 * hertz, params.contact_damping, h),
+        )
+    } else {
+        let rigid = Bias {
+            rate: params.baumgarte * inv_h,
+            ..Bias::NONE
+        };
+        (rigid, rigid)
+    };
+
+    let mut bouncing = contacts.iter().any(|c| c.bounce > 0.0);
     for step in 0..substeps {
-        integrate_velocities(bodies, h);
+        for (&i, &g) in movers.iter().zip(gain.iter()) {
+            sb[i as usize].vel += g * h;
+        }
         // Warm start: the impulses of the last sub-step (or frame) once more.
         if params.warm_starting || step > 0 {
-            for c in &contacts {
+            for c in contacts.iter() {
                 if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
                     let t = DVec2::new(-c.normal.y, c.normal.x);
-                    apply(
-                        bodies,
-                        c,
-                        c.normal * c.normal_impulse + t * c.tangent_impulse,
-                    );
+                    apply(sb, c, c.normal * c.normal_impulse + t * c.tangent_impulse);
                 }
             }
         }
-        for _ in 0..params.iterations {
-            for c in contacts.iter_mut() {
-                let (a, b) = (c.a as usize, c.b as usize);
-                let dv = bodies[b].vel - bodies[a].vel;
-                // Separation now: the frame's start plus how far the bodies moved since.
-                let gap = c.gap
-                    + ((bodies[b].pos - c.start_b) - (bodies[a].pos - c.start_a)).dot(c.normal);
-                let target = if c.speculative && gap > 0.0 {
-                    // Apart when found: close the gap within this sub-step, no further.
-                    -gap * inv_h
-                } else {
-                    // Touching: hold, push out what exceeds the slop.
-                    (params.baumgarte * inv_h * (-gap - c.slop).max(0.0)).min(c.max_push)
-                };
-                // Normal: drive the normal velocity to its target, never pulling.
-                let vn = dv.dot(c.normal);
-                let total = (c.normal_impulse + c.mass * (target - vn)).max(0.0);
-                let dn = total - c.normal_impulse;
-                c.normal_impulse = total;
-                // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
-                // (The normal impulse does not change the tangential velocity.)
-                let t = DVec2::new(-c.normal.y, c.normal.x);
-                let vt = dv.dot(t);
-                let limit = c.friction * c.normal_impulse;
-                let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
-                let dt_imp = total_t - c.tangent_impulse;
-                c.tangent_impulse = total_t;
-                apply(bodies, c, c.normal * dn + t * dt_imp);
-            }
+        for k in 0..params.iterations {
+            // Split impulses start from nothing each sub-step.
+            let fresh = params.split_impulses && k == 0;
+            solve_pass(
+                sb,
+                contacts,
+                push,
+                push_fixed,
+                inv_h,
+                params.split_impulses,
+                fresh,
+            );
         }
         for &i in movers {
-            let body = &mut bodies[i as usize];
-            body.pos += body.vel * h;
+            let body = &mut sb[i as usize];
+            body.delta += (body.vel + body.pseudo) * h;
+            body.pseudo = DVec2::ZERO;
+        }
+        for _ in 0..params.relax_iterations {
+            solve_pass(sb, contacts, Bias::NONE, Bias::NONE, inv_h, false, false);
         }
         // Restitution, once, for contacts that pushed: after the move, the normal velocity
         // becomes the bounce of the approach speed the contact was found with (as Box2D
         // applies it), so a contact that caught a body early still bounces it fully.
+        if !bouncing {
+            continue;
+        }
+        bouncing = false;
         for c in contacts.iter_mut() {
             if c.bounce > 0.0 && c.normal_impulse > 0.0 {
                 let (a, b) = (c.a as usize, c.b as usize);
-                let vn = (bodies[b].vel - bodies[a].vel).dot(c.normal);
+                let vn = (sb[b].vel - sb[a].vel).dot(c.normal);
                 let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
                 let p = c.normal * (total - c.normal_impulse);
                 c.normal_impulse = total;
-                apply(bodies, c, p);
+                apply(sb, c, p);
                 c.bounce = 0.0;
             }
+            bouncing |= c.bounce > 0.0;
         }
     }
 
-    cache.impulses.clear();
-    for c in &contacts {
+    for &i in movers {
+        let (body, s) = (&mut bodies[i as usize], &sb[i as usize]);
+        body.vel = s.vel;
+        body.pos += s.delta;
+    }
+    for c in contacts.iter() {
+        let pair = &mut pairs[c.pair as usize];
+        pair.normal = c.normal;
+        pair.normal_impulse = c.normal_impulse;
+        pair.tangent_impulse = c.tangent_impulse;
         if c.normal_impulse > 0.0 {
-            bodies[c.a as usize].collided = true;
-            bodies[c.b as usize].collided = true;
+            for i in [c.a, c.b] {
+                let body = &mut bodies[i as usize];
+                if !body.collided {
+                    body.collided = true;
+                    flagged.push(i);
+                }
+            }
         }
-        let key = (bodies[c.a as usize].key, bodies[c.b as usize].key);
-        cache
-            .impulses
-            .insert(key, (c.normal, c.normal_impulse, c.tangent_impulse));
     }
     report
 }
 
-fn apply(bodies: &mut [Body], c: &Contact, impulse: DVec2) {
-    bodies[c.a as usize].vel -= impulse * c.inv_a;
-    bodies[c.b as usize].vel += impulse * c.inv_b;
+/// One velocity pass over every contact: the normal impulse that brings the normal
+/// velocity to its target (never pulling), then friction within the Coulomb cone.
+#[inline]
+fn solve_pass(
+    sb: &mut [SolverBody],
+    contacts: &mut [Contact],
+    push: Bias,
+    push_fixed: Bias,
+    inv_h: f64,
+    split: bool,
+    fresh: bool,
+) {
+    for c in contacts.iter_mut() {
+        if fresh {
+            c.pseudo_impulse = 0.0;
+        }
+        let (a, b) = (c.a as usize, c.b as usize);
+        let (ba, bb) = (sb[a], sb[b]);
+        let dv = bb.vel - ba.vel;
+        // Separation now: the frame's start plus how far the bodies moved since.
+        let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
+        let bias = if c.fixed { push_fixed } else { push };
+        let (target, mass_scale, impulse_scale) = if c.speculative && gap > 0.0 {
+            // Apart when found: close the gap within this sub-step, no further.
+            (-gap * inv_h, 1.0, 0.0)
+        } else {
+            // Touching: hold, push out what exceeds the slop.
+            let pen = (-gap - c.slop).max(0.0);
+            if pen > 0.0 && split {
+                // The push goes to the pseudo-velocities; the velocity only holds.
+                let target = (bias.rate * pen).min(c.max_push);
+                let pv = (bb.pseudo - ba.pseudo).dot(c.normal);
+                let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
+                let p = c.normal * (total - c.pseudo_impulse);
+                c.pseudo_impulse = total;
+                sb[a].pseudo -= p * ba.inv_mass;
+                sb[b].pseudo += p * bb.inv_mass;
+                (0.0, 1.0, 0.0)
+            } else if pen > 0.0 {
+                (
+                    (bias.rate * pen).min(c.max_push),
+                    bias.mass_scale,
+                    bias.impulse_scale,
+                )
+            } else {
+                (0.0, 1.0, 0.0)
+            }
+        };
+        let vn = dv.dot(c.normal);
+        let total = (c.normal_impulse + mass_scale * c.mass * (target - vn)
+            - impulse_scale * c.normal_impulse)
+            .max(0.0);
+        let dn = total - c.normal_impulse;
+        c.normal_impulse = total;
+        // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
+        // (The normal impulse does not change the tangential velocity.)
+        let t = DVec2::new(-c.normal.y, c.normal.x);
+        let vt = dv.dot(t);
+        let limit = c.friction * c.normal_impulse;
+        let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
+        let dt_imp = total_t - c.tangent_impulse;
+        c.tangent_impulse = total_t;
+        let p = c.normal * dn + t * dt_imp;
+        sb[a].vel -= p * ba.inv_mass;
+        sb[b].vel += p * bb.inv_mass;
+    }
+}
+
+fn apply(sb: &mut [SolverBody], c: &Contact, impulse: DVec2) {
+    let (ia, ib) = (sb[c.a as usize].inv_mass, sb[c.b as usize].inv_mass);
+    sb[c.a as usize].vel -= impulse * ia;
+    sb[c.b as usize].vel += impulse * ib;
 }
 
 #[cfg(test)]
@@ -300,23 +506,40 @@ mod tests {
         }
     }
 
-    /// One frame of one sub-step, without gravity.
+    /// One frame of one sub-step, without gravity, over `candidates`.
     fn solve(
         bodies: &mut [Body],
-        pairs: &mut Vec<(u32, u32)>,
+        candidates: &mut Vec<(u32, u32)>,
         params: ImpulseParams,
         cache: &mut ContactCache,
     ) -> ImpulseReport {
-        solve_frame(bodies, pairs, params, 1, cache, &[0, 1], |_, _| {})
+        let mut pairs = Vec::new();
+        cache.pairs(bodies, candidates, &mut pairs);
+        let report = solve_frame(
+            bodies,
+            &mut pairs,
+            params,
+            &mut SolverBuffers::default(),
+            &[0, 1],
+            |_| DVec2::ZERO,
+            &mut Vec::new(),
+        );
+        cache.store(bodies, &pairs);
+        report
     }
 
     fn params() -> ImpulseParams {
         ImpulseParams {
             iterations: 8,
+            relax_iterations: 0,
             warm_starting: true,
             baumgarte: 0.2,
             slop: 0.01,
+            contact_hertz: 0.0,
+            contact_damping: 10.0,
+            split_impulses: false,
             dt: 1.0 / 60.0,
+            substeps: 1,
         }
     }
 

@@ -6,6 +6,7 @@ pub mod ccd;
 pub mod config;
 pub mod impulse;
 pub mod integrate;
+pub mod pairs;
 pub mod relaxation;
 pub mod sleep;
 

@@ -1,0 +1,499 @@
+//! The persistent broad phase (`broad_phase = "grid"`): candidate pairs kept from step to
+//! step.
+//!
+//! Every body of a group that a resolving interaction names gets a *fat box*: its bounding
+//! box grown by a margin. Fat boxes live in a uniform grid, and the candidate pairs are
+//! the pairs of eligible bodies whose fat boxes overlap. A step looks only at the bodies
+//! that move: one whose box (grown by how far it may travel this step) still fits in its
+//! fat box changes nothing; one that left it gets a new fat box, is moved between grid
+//! cells and looks for new neighbours there. A resting pile of thousands of bodies costs
+//! one containment test per body; static bodies cost nothing at all until the layout
+//! changes (bodies added, removed or moved by hand, interactions declared), which
+//! rebuilds the set.
+//!
+//! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
+//! is deterministic. Each pair carries the impulses the solver left on it last step (warm
+//! starting without a lookup).
+
+use glam::DVec2;
+
+use super::body::{Body, GroupId};
+use super::impulse::KeyMap;
+use crate::geometry::Aabb;
+
+/// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pair {
+    pub a: u32,
+    pub b: u32,
+    /// The normal of the last contact (from `a` to `b`).
+    pub normal: DVec2,
+    pub normal_impulse: f64,
+    pub tangent_impulse: f64,
+}
+
+impl Pair {
+    pub fn new(a: u32, b: u32) -> Pair {
+        Pair {
+            a,
+            b,
+            normal: DVec2::ZERO,
+            normal_impulse: 0.0,
+            tangent_impulse: 0.0,
+        }
+    }
+}
+
+/// Where a body sits in the grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Place {
+    /// Not in any resolving interaction.
+    Absent,
+    /// In the cells `x0..=x1, y0..=y1`.
+    Cells(i64, i64, i64, i64),
+    /// Too large for the grid: tested against every moving body.
+    Oversized,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Fat {
+    min: DVec2,
+    max: DVec2,
+    place: Place,
+    /// The body's key (impulses survive a rebuild through it).
+    key: u32,
+}
+
+/// A body's box may cover at most this many cells; larger ones are kept aside.
+const MAX_CELLS: i64 = 64;
+
+/// The persistent candidate pairs of every resolving interaction.
+#[derive(Clone, Debug, Default)]
+pub struct PairSet {
+    /// The world layout revision the set was built for.
+    revision: Option<u64>,
+    cell: f64,
+    fat: Vec<Fat>,
+    cells: KeyMap<(i64, i64), Vec<u32>>,
+    oversized: Vec<u32>,
+    /// Which group pairs resolve (row-major, `groups x groups`).
+    resolves: Vec<bool>,
+    groups: usize,
+    /// The candidate pairs, sorted by `(a, b)`.
+    pub pairs: Vec<Pair>,
+    moved: Vec<u32>,
+    found: Vec<(u32, u32)>,
+    merged: Vec<Pair>,
+    /// Bodies re-inserted over the set's life (a figure for tests and benchmarks).
+    pub reinserted: u64,
+}
+
+/// How far a body may travel during a step of `dt` plus a tenth of its size: its box
+/// grown by this must stay inside its fat box.
+fn reach(body: &Body, dt: f64) -> f64 {
+    body.vel.length() * dt + 0.1 * body.shape.half_extents().max_element()
+}
+
+/// A body that is static for good (a sleeper is only frozen for the step).
+fn fixed(body: &Body) -> bool {
+    body.is_static() && body.asleep.is_none()
+}
+
+fn overlap(p: &Fat, q: &Fat) -> bool {
+    p.min.x <= q.max.x && q.min.x <= p.max.x && p.min.y <= q.max.y && q.min.y <= p.max.y
+}
+
+impl PairSet {
+    /// Brings the pairs up to date for a step of `dt`. `revision` is the world's layout
+    /// revision (a new one rebuilds everything), `resolving` the group pairs of the
+    /// resolving interactions, `movers` the bodies that may have moved since last time.
+    pub fn update(
+        &mut self,
+        bodies: &[Body],
+        revision: u64,
+        resolving: &[(GroupId, GroupId)],
+        movers: &[u32],
+        dt: f64,
+    ) {
+        if self.revision != Some(revision) || self.fat.len() != bodies.len() {
+            self.rebuild(bodies, revision, resolving, dt);
+            return;
+        }
+        self.moved.clear();
+        for &i in movers {
+            let body = &bodies[i as usize];
+            let f = self.fat[i as usize];
+            if f.place == Place::Absent {
+                continue;
+            }
+            let r = reach(body, dt);
+            let Aabb { min, max } = Aabb::of(&body.shape, body.pos);
+            if min.x - r >= f.min.x
+                && min.y - r >= f.min.y
+                && max.x + r <= f.max.x
+                && max.y + r <= f.max.y
+            {
+                continue;
+            }
+            self.remove_from_cells(i);
+            self.place(bodies, i, dt);
+            self.moved.push(i);
+        }
+        if self.moved.is_empty() {
+            return;
+        }
+        self.reinserted += self.moved.len() as u64;
+        let fat = &self.fat;
+        self.pairs
+            .retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
+        self.found.clear();
+        let moved = std::mem::take(&mut self.moved);
+        for &i in &moved {
+            self.neighbours(bodies, i);
+        }
+        self.moved = moved;
+        self.merge_found();
+    }
+
+    fn rebuild(
+        &mut self,
+        bodies: &[Body],
+        revision: u64,
+        resolving: &[(GroupId, GroupId)],
+        dt: f64,
+    ) {
+        // Warm-starting impulses survive a rebuild, found again by the bodies' keys.
+        let old: KeyMap<(u32, u32), Pair> = self
+            .pairs
+            .iter()
+            .filter(|p| p.normal_impulse != 0.0 || p.tangent_impulse != 0.0)
+            .map(|p| {
+                let (ka, kb) = (self.fat[p.a as usize].key, self.fat[p.b as usize].key);
+                ((ka.min(kb), ka.max(kb)), *p)
+            })
+            .collect();
+        self.revision = Some(revision);
+        self.groups = resolving
+            .iter()
+            .map(|&(a, b)| a.max(b) as usize + 1)
+            .max()
+            .unwrap_or(0);
+        self.resolves = vec![false; self.groups * self.groups];
+        for &(a, b) in resolving {
+            let (a, b) = (a as usize, b as usize);
+            self.resolves[a * self.groups + b] = true;
+            self.resolves[b * self.groups + a] = true;
+        }
+        let in_play = |b: &Body| {
+            let g = b.group as usize;
+            g < self.groups && (0..self.groups).any(|h| self.resolves[g * self.groups + h])
+        };
+        // Cells about twice the typical moving body (static ones may be huge floors).
+        let (mut sum, mut n) = (0.0, 0usize);
+        for b in bodies.iter().filter(|b| in_play(b)) {
+            if !fixed(b) {
+                sum += b.shape.half_extents().max_element();
+                n += 1;
+            }
+        }
+        if n == 0 {
+            for b in bodies.iter().filter(|b| in_play(b)) {
+                sum += b.shape.half_extents().max_element();
+                n += 1;
+            }
+        }
+        self.cell = if n == 0 {
+            1.0
+        } else {
+            (4.0 * sum / n as f64).max(1e-9)
+        };
+        let play: Vec<bool> = bodies.iter().map(in_play).collect();
+        self.fat.clear();
+        self.fat.extend(bodies.iter().map(|b| Fat {
+            min: DVec2::ZERO,
+            max: DVec2::ZERO,
+            place: Place::Absent,
+            key: b.key.0,
+        }));
+        self.cells.clear();
+        self.oversized.clear();
+        for (i, &p) in play.iter().enumerate() {
+            if p {
+                self.place(bodies, i as u32, dt);
+            }
+        }
+        self.found.clear();
+        for (i, &p) in play.iter().enumerate() {
+            if p {
+                self.neighbours(bodies, i as u32);
+            }
+        }
+        self.pairs.clear();
+        self.merge_found();
+        if !old.is_empty() {
+            for p in &mut self.pairs {
+                let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
+                if let Some(o) = old.get(&(ka.min(kb), ka.max(kb))) {
+                    p.normal = o.normal;
+                    p.normal_impulse = o.normal_impulse;
+                    p.tangent_impulse = o.tangent_impulse;
+                }
+            }
+        }
+    }
+
+    /// Gives body `i` a fat box around where it is now and puts it in the grid.
+    fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
+        let body = &bodies[i as usize];
+        let Aabb { min, max } = Aabb::of(&body.shape, body.pos);
+        // Room for two steps of travel and a quarter of the body's size.
+        let m = if fixed(body) {
+            0.0
+        } else {
+            2.0 * body.vel.length() * dt + 0.25 * body.shape.half_extents().max_element()
+        };
+        let (min, max) = (min - m, max + m);
+        let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
+        let (x0, y0, x1, y1) = (c(min.x), c(min.y), c(max.x), c(max.y));
+        let place = if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > MAX_CELLS {
+            self.oversized.push(i);
+            Place::Oversized
+        } else {
+            for cx in x0..=x1 {
+                for cy in y0..=y1 {
+                    self.cells.entry((cx, cy)).or_default().push(i);
+                }
+            }
+            Place::Cells(x0, y0, x1, y1)
+        };
+        self.fat[i as usize] = Fat {
+            min,
+            max,
+            place,
+            key: body.key.0,
+        };
+    }
+
+    fn remove_from_cells(&mut self, i: u32) {
+        match self.fat[i as usize].place {
+            Place::Absent => {}
+            Place::Oversized => self.oversized.retain(|&j| j != i),
+            Place::Cells(x0, y0, x1, y1) => {
+                for cx in x0..=x1 {
+                    for cy in y0..=y1 {
+                        if let Some(list) = self.cells.get_mut(&(cx, cy)) {
+                            if let Some(k) = list.iter().position(|&j| j == i) {
+                                list.swap_remove(k);
+                            }
+                            if list.is_empty() {
+                                self.cells.remove(&(cx, cy));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    fn eligible(&self, bodies: &[Body], i: u32, j: u32) -> bool {
+        let (p, q) = (&bodies[i as usize], &bodies[j as usize]);
+        i != j
+            && !(fixed(p) && fixed(q))
+            && self.resolves[p.group as usize * self.groups + q.group as usize]
+    }
+
+    /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap.
+    fn neighbours(&mut self, bodies: &[Body], i: u32) {
+        let fi = self.fat[i as usize];
+        let push = |set: &Self, found: &mut Vec<(u32, u32)>, j: u32| {
+            if set.eligible(bodies, i, j) && overlap(&fi, &set.fat[j as usize]) {
+                found.push((i.min(j), i.max(j)));
+            }
+        };
+        let mut found = std::mem::take(&mut self.found);
+        match fi.place {
+            Place::Absent => {}
+            Place::Cells(x0, y0, x1, y1) => {
+                for cx in x0..=x1 {
+                    for cy in y0..=y1 {
+                        if let Some(list) = self.cells.get(&(cx, cy)) {
+                            for &j in list {
+                                push(self, &mut found, j);
+                            }
+                        }
+                    }
+                }
+                for &j in &self.oversized {
+                    push(self, &mut found, j);
+                }
+            }
+            Place::Oversized => {
+                for j in 0..self.fat.len() as u32 {
+                    if self.fat[j as usize].place != Place::Absent {
+                        push(self, &mut found, j);
+                    }
+                }
+            }
+        }
+        self.found = found;
+    }
+
+    /// Adds the pairs in `found` that are not kept yet, keeping `pairs` sorted.
+    fn merge_found(&mut self) {
+        if self.found.is_empty() {
+            return;
+        }
+        self.found.sort_unstable();
+        self.found.dedup();
+        self.merged.clear();
+        let mut new = self.found.iter().peekable();
+        for p in &self.pairs {
+            while let Some(&&(a, b)) = new.peek() {
+                if (a, b) < (p.a, p.b) {
+                    self.merged.push(Pair::new(a, b));
+                    new.next();
+                } else {
+                    if (a, b) == (p.a, p.b) {
+                        new.next();
+                    }
+                    break;
+                }
+            }
+            self.merged.push(*p);
+        }
+        self.merged.extend(new.map(|&(a, b)| Pair::new(a, b)));
+        std::mem::swap(&mut self.pairs, &mut self.merged);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Shape;
+    use proptest::prelude::*;
+
+    fn body(i: u32, x: f64, y: f64, w: f64, h: f64, inv_mass: f64, group: GroupId) -> Body {
+        Body {
+            key: super::super::body::BodyKey(i),
+            group,
+            ..Body::for_test(Shape::rect(w, h), DVec2::new(x, y), DVec2::ZERO, inv_mass)
+        }
+    }
+
+    /// Every pair whose bodies' boxes overlap and that must be resolved.
+    fn touching(bodies: &[Body], resolving: &[(GroupId, GroupId)]) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        for i in 0..bodies.len() {
+            for j in i + 1..bodies.len() {
+                let (p, q) = (&bodies[i], &bodies[j]);
+                let named = resolving
+                    .iter()
+                    .any(|&(a, b)| (a, b) == (p.group, q.group) || (b, a) == (p.group, q.group));
+                let (bp, bq) = (Aabb::of(&p.shape, p.pos), Aabb::of(&q.shape, q.pos));
+                let overlap = bp.min.x <= bq.max.x
+                    && bq.min.x <= bp.max.x
+                    && bp.min.y <= bq.max.y
+                    && bq.min.y <= bp.max.y;
+                if named && overlap && !(p.is_static() && q.is_static()) {
+                    out.push((i as u32, j as u32));
+                }
+            }
+        }
+        out
+    }
+
+    proptest! {
+        /// After any sequence of moves, every touching pair is a candidate, candidates are
+        /// sorted and unique, and none joins two static bodies or groups no interaction
+        /// names.
+        #[test]
+        fn kept_pairs_cover_every_touching_pair_after_moves(
+            boxes in proptest::collection::vec(
+                (0.0f64..60.0, 0.0f64..60.0, 0.2f64..6.0, 0.2f64..6.0, 0u8..4, 0u16..3), 2..60),
+            moves in proptest::collection::vec((0usize..60, -8.0f64..8.0, -8.0f64..8.0), 0..40),
+        ) {
+            // A static floor far larger than the grid's cells, too.
+            let mut bodies = vec![body(0, 30.0, -1.0, 400.0, 2.0, 0.0, 0)];
+            bodies.extend(boxes.iter().enumerate().map(|(k, &(x, y, w, h, s, g))| {
+                body(k as u32 + 1, x, y, w, h, if s == 0 { 0.0 } else { 1.0 }, g)
+            }));
+            let resolving = [(0, 1), (1, 1)];
+            let movers: Vec<u32> = (0..bodies.len() as u32)
+                .filter(|&i| !bodies[i as usize].is_static())
+                .collect();
+            let mut set = PairSet::default();
+            let dt = 1.0 / 60.0;
+            set.update(&bodies, 1, &resolving, &movers, dt);
+            for (k, dx, dy) in moves {
+                if let Some(&i) = movers.get(k % movers.len().max(1)) {
+                    let b = &mut bodies[i as usize];
+                    b.vel = DVec2::new(dx, dy) * 30.0;
+                    b.pos += DVec2::new(dx, dy);
+                }
+                set.update(&bodies, 1, &resolving, &movers, dt);
+                let kept: Vec<(u32, u32)> = set.pairs.iter().map(|p| (p.a, p.b)).collect();
+                prop_assert!(kept.windows(2).all(|w| w[0] < w[1]), "sorted, unique");
+                for p in &set.pairs {
+                    let (a, b) = (&bodies[p.a as usize], &bodies[p.b as usize]);
+                    prop_assert!(!(a.is_static() && b.is_static()));
+                    prop_assert!(a.group != 2 && b.group != 2);
+                }
+                for t in touching(&bodies, &resolving) {
+                    prop_assert!(kept.binary_search(&t).is_ok(), "missing {:?}", t);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bodies_at_rest_are_never_looked_at_again_and_impulses_survive_a_rebuild() {
+        let mut bodies: Vec<Body> = (0..10)
+            .map(|k| body(k, 0.0, 0.5 + k as f64, 1.0, 1.0, 1.0, 1))
+            .collect();
+        bodies.push(body(10, 0.0, -1.0, 100.0, 2.0, 0.0, 0));
+        let movers: Vec<u32> = (0..10).collect();
+        let resolving = [(0, 1), (1, 1)];
+        let mut set = PairSet::default();
+        set.update(&bodies, 1, &resolving, &movers, 1.0 / 60.0);
+        // Nine box-on-box contacts and the bottom box on the floor.
+        let kept: Vec<(u32, u32)> = set.pairs.iter().map(|p| (p.a, p.b)).collect();
+        assert!(
+            kept.contains(&(0, 10)) && kept.contains(&(8, 9)),
+            "{kept:?}"
+        );
+        for _ in 0..100 {
+            set.update(&bodies, 1, &resolving, &movers, 1.0 / 60.0);
+        }
+        assert_eq!(set.reinserted, 0);
+        // A new layout (a body removed in front) keeps the impulses by body key.
+        set.pairs
+            .iter_mut()
+            .for_each(|p| p.normal_impulse = (p.a * 100 + p.b) as f64);
+        let before: Vec<(u32, u32, f64)> = set
+            .pairs
+            .iter()
+            .map(|p| {
+                (
+                    bodies[p.a as usize].key.0,
+                    bodies[p.b as usize].key.0,
+                    p.normal_impulse,
+                )
+            })
+            .collect();
+        bodies.remove(5);
+        set.update(
+            &bodies,
+            2,
+            &resolving,
+            &(0..9).collect::<Vec<_>>(),
+            1.0 / 60.0,
+        );
+        for p in &set.pairs {
+            let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
+            if let Some(&(_, _, j)) = before.iter().find(|&&(a, b, _)| (a, b) == (ka, kb)) {
+                assert_eq!(p.normal_impulse, j);
+            }
+        }
+        assert!(set.pairs.iter().any(|p| p.normal_impulse > 0.0));
+    }
+}
