@@ -247,10 +247,18 @@ fn a_hundred_thousand_particles_stay_finite_and_expire() {
 
 #[test]
 fn a_resting_stack_sleeps_and_wakes_when_hit() {
-    let mut w = load(
-        "stack-20.toml",
-        &["solver=\"impulses\"", "substeps=2", "sleeping=true"],
-    );
+    for broad_phase in ["broad_phase=\"sweep\"", "broad_phase=\"grid\""] {
+        sleeps_and_wakes(&[
+            "solver=\"impulses\"",
+            "substeps=2",
+            "sleeping=true",
+            broad_phase,
+        ]);
+    }
+}
+
+fn sleeps_and_wakes(overrides: &[&str]) {
+    let mut w = load("stack-20.toml", overrides);
     w.step_n(300);
     assert_eq!(w.stats().sleeping, 20, "the whole stack sleeps");
     let asleep: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
