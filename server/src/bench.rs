@@ -113,6 +113,21 @@ pub fn pyramid_case(levels: u32, setting: &str, config: WorldConfig, steps: u64)
     }
 }
 
+/// `base` with the impulse solver, split impulses (baumgarte 0.5, slop 1e-4) and the grid
+/// broad phase: the large pyramid's setting (`docs/bench/README.md`).
+pub fn split_setting(base: &WorldConfig, iterations: u32, substeps: u32) -> WorldConfig {
+    WorldConfig {
+        solver: Solver::Impulses,
+        impulse_iterations: iterations,
+        substeps,
+        split_impulses: true,
+        baumgarte: 0.5,
+        slop: 0.0001,
+        broad_phase: BroadPhase::Grid,
+        ..base.clone()
+    }
+}
+
 /// The settings the pyramid is measured under: the chapter's relaxation, the impulse
 /// solver with the sweep broad phase (before the grid), then with the grid, split
 /// impulses and soft contacts.
@@ -128,12 +143,7 @@ pub fn pyramid_settings() -> Vec<(String, WorldConfig)> {
         broad_phase: BroadPhase::Grid,
         ..impulses(iterations, substeps)
     };
-    let split = |iterations: u32, substeps: u32| WorldConfig {
-        split_impulses: true,
-        baumgarte: 0.5,
-        slop: 0.0001,
-        ..grid(iterations, substeps)
-    };
+    let split = |iterations: u32, substeps: u32| split_setting(&base, iterations, substeps);
     vec![
         (
             "relaxation 15 (chapter), sweep".into(),

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use glam::DVec2;
 
+use crate::bench::split_setting;
 use crate::dynamics::config::{Integrator, Solver, WorldConfig};
 use crate::dynamics::{BodyDef, BroadPhase};
 use crate::geometry::Shape;
@@ -62,21 +63,10 @@ pub fn settings() -> Vec<Setting> {
             c.warm_starting = false;
         }),
         s("impulses 6 it, split, grid", &|c| {
-            c.solver = Solver::Impulses;
-            c.impulse_iterations = 6;
-            c.split_impulses = true;
-            c.baumgarte = 0.5;
-            c.slop = 0.0001;
-            c.broad_phase = BroadPhase::Grid;
+            *c = split_setting(c, 6, 1)
         }),
         s("impulses 4 it, 2 sub-steps, split, grid", &|c| {
-            c.solver = Solver::Impulses;
-            c.impulse_iterations = 4;
-            c.substeps = 2;
-            c.split_impulses = true;
-            c.baumgarte = 0.5;
-            c.slop = 0.0001;
-            c.broad_phase = BroadPhase::Grid;
+            *c = split_setting(c, 4, 2)
         }),
         s("soft 1 it + 1 relax, 4 sub-steps, grid", &|c| {
             c.solver = Solver::Impulses;

@@ -520,14 +520,7 @@ impl World {
         let dt = self.config.dt;
         let mut pairs = Vec::new();
         let mut some = Vec::new();
-        if self.config.broad_phase == BroadPhase::Grid {
-            self.update_pair_set(dt);
-            pairs.extend(self.pair_set.pairs.iter().map(|p| (p.a, p.b)));
-        }
         for k in 0..self.interactions.len() {
-            if self.config.broad_phase == BroadPhase::Grid {
-                break;
-            }
             let inter = self.interactions[k];
             if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
                 self.candidates(a, b, dt, &mut some);
@@ -590,11 +583,7 @@ impl World {
                             }
                             BroadPhase::Sweep | BroadPhase::Grid => {
                                 let mut pairs = std::mem::take(&mut self.pairs);
-                                if self.config.broad_phase == BroadPhase::Grid {
-                                    self.grid_candidates(a, b, dt, &mut pairs);
-                                } else {
-                                    self.candidates(a, b, dt, &mut pairs);
-                                }
+                                self.candidates(a, b, dt, &mut pairs);
                                 let report =
                                     relaxation::relax_pairs(&mut self.bodies, &pairs, params);
                                 self.pairs = pairs;
@@ -657,9 +646,14 @@ impl World {
         }
     }
 
-    /// Candidate pairs of the interaction between groups `a` and `b` (sweep broad phase):
-    /// against a large all-static group, from its cached grid; otherwise by sweep and prune.
+    /// Candidate pairs of the interaction between groups `a` and `b`, in all-pairs order:
+    /// from the grid broad phase's kept pairs; or, with the sweep, against a large
+    /// all-static group from its cached grid, otherwise by sweep and prune.
     fn candidates(&mut self, a: GroupId, b: GroupId, dt: f64, out: &mut Vec<(u32, u32)>) {
+        if self.config.broad_phase == BroadPhase::Grid {
+            self.grid_candidates(a, b, dt, out);
+            return;
+        }
         if a != b {
             for (fixed, moving, static_first) in [(b, a, false), (a, b, true)] {
                 if self.static_grid(fixed) {

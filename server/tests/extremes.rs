@@ -339,16 +339,7 @@ fn heavy_on_light_holds_at_two_sub_steps_with_split_impulses() {
 /// 40-level pyramid (820 boxes): it comes back to where it was built.
 #[test]
 fn a_forty_level_pyramid_holds_with_split_impulses_on_the_grid() {
-    use ricochet::dynamics::{BroadPhase, Solver, WorldConfig};
-    let config = WorldConfig {
-        solver: Solver::Impulses,
-        broad_phase: BroadPhase::Grid,
-        impulse_iterations: 6,
-        split_impulses: true,
-        baumgarte: 0.5,
-        slop: 0.0001,
-        ..WorldConfig::default()
-    };
+    let config = ricochet::bench::split_setting(&Default::default(), 6, 1);
     let (_, r) = run(ricochet::bench::pyramid(40, config), 500);
     assert!(!r.nan);
     assert!(r.drift < 0.02, "drift {} box sizes", r.drift);

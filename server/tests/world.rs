@@ -523,9 +523,9 @@ fn every_shipped_scene_loads_and_runs_without_nan() {
     assert!(seen >= 10, "only {seen} scenes found");
 }
 
-#[test]
-fn the_sweep_broad_phase_gives_the_chapters_all_pairs_results_bit_for_bit() {
-    let actions = vec![
+/// Inputs that move, spawn, select and drag bodies: what a broad phase must keep up with.
+fn broad_phase_actions() -> Vec<(u64, Action)> {
+    vec![
         (
             5,
             Action::Press {
@@ -535,8 +535,21 @@ fn the_sweep_broad_phase_gives_the_chapters_all_pairs_results_bit_for_bit() {
         (10, Action::FireDyePack { at: [150.0, 80.0] }),
         (12, Action::SpawnDumbMinion { at: [100.0, 70.0] }),
         (14, Action::SpawnDumbMinion { at: [104.0, 90.0] }),
+        (
+            13,
+            Action::Select {
+                at: [100.0, 70.0],
+                group: None,
+            },
+        ),
         (30, Action::Agitate { strength: None }),
-    ];
+        (40, Action::Drag { to: [60.0, 60.0] }),
+    ]
+}
+
+#[test]
+fn the_sweep_broad_phase_gives_the_chapters_all_pairs_results_bit_for_bit() {
+    let actions = broad_phase_actions();
     for scene_name in ["emitters.toml", "bounds.toml", "pyramid-10.toml"] {
         let mut all_pairs = asset(scene_name);
         all_pairs
@@ -562,26 +575,7 @@ fn the_sweep_broad_phase_gives_the_chapters_all_pairs_results_bit_for_bit() {
 /// in the same order as the sweep, for both solvers, so results match bit for bit.
 #[test]
 fn the_grid_broad_phase_gives_the_sweeps_results_bit_for_bit() {
-    let actions = vec![
-        (
-            5,
-            Action::Press {
-                dir: Direction::Right,
-            },
-        ),
-        (10, Action::FireDyePack { at: [150.0, 80.0] }),
-        (12, Action::SpawnDumbMinion { at: [100.0, 70.0] }),
-        (14, Action::SpawnDumbMinion { at: [104.0, 90.0] }),
-        (
-            13,
-            Action::Select {
-                at: [100.0, 70.0],
-                group: None,
-            },
-        ),
-        (30, Action::Agitate { strength: None }),
-        (40, Action::Drag { to: [60.0, 60.0] }),
-    ];
+    let actions = broad_phase_actions();
     for scene_name in [
         "emitters.toml",
         "bounds.toml",

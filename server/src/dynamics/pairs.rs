@@ -189,24 +189,17 @@ impl PairSet {
             g < self.groups && (0..self.groups).any(|h| self.resolves[g * self.groups + h])
         };
         // Cells about twice the typical moving body (static ones may be huge floors).
-        let (mut sum, mut n) = (0.0, 0usize);
-        for b in bodies.iter().filter(|b| in_play(b)) {
-            if !fixed(b) {
-                sum += b.shape.half_extents().max_element();
-                n += 1;
-            }
-        }
-        if n == 0 {
-            for b in bodies.iter().filter(|b| in_play(b)) {
-                sum += b.shape.half_extents().max_element();
-                n += 1;
-            }
-        }
-        self.cell = if n == 0 {
-            1.0
-        } else {
-            (4.0 * sum / n as f64).max(1e-9)
+        let mean_half = |keep: &dyn Fn(&Body) -> bool| {
+            let halves: Vec<f64> = bodies
+                .iter()
+                .filter(|b| in_play(b) && keep(b))
+                .map(|b| b.shape.half_extents().max_element())
+                .collect();
+            (!halves.is_empty()).then(|| halves.iter().sum::<f64>() / halves.len() as f64)
         };
+        self.cell = mean_half(&|b| !fixed(b))
+            .or_else(|| mean_half(&|_| true))
+            .map_or(1.0, |h| (4.0 * h).max(1e-9));
         let play: Vec<bool> = bodies.iter().map(in_play).collect();
         self.fat.clear();
         self.fat.extend(bodies.iter().map(|b| Fat {
