@@ -8,10 +8,11 @@ use std::process::{Command as Process, Stdio};
 use std::time::{Duration, Instant};
 
 use common::*;
-use ricochet_protocol::client::{Client, Mode, Network};
+use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, Direction, ServerCommand};
 use ricochet_protocol::dump::read_dump;
 use ricochet_protocol::frame::{FrameDecoder, POS_QUANTUM};
+use ricochet_protocol::net::{Mode, Network};
 
 /// One subscription to a world's frames, decoded as they come.
 struct Follower {

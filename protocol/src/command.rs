@@ -8,77 +8,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// A direction of the hero's controls (the chapter's WASD keys).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Direction {
-    Up,
-    Down,
-    Left,
-    Right,
-}
-
-/// A point `[x, y]` in world units.
-pub type Point = [f64; 2];
-
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
-pub enum Action {
-    /// Starts holding a direction of the hero's controls.
-    Press { dir: Direction },
-    /// Stops holding a direction.
-    Release { dir: Direction },
-    /// Sends a dye pack from `at`, homing on the hero.
-    FireDyePack { at: Point },
-    /// Spawns a patrolling minion at `at` (a circle unless `shape` is "rect").
-    SpawnMinion {
-        at: Point,
-        #[serde(default)]
-        shape: Option<String>,
-    },
-    /// Spawns a dumb minion (the stability demo's test body) at `at`.
-    SpawnDumbMinion { at: Point },
-    /// Selects the body under `at` (among `group`, or any dynamic body).
-    Select {
-        at: Point,
-        #[serde(default)]
-        group: Option<String>,
-    },
-    /// Moves the selected body to `to`, its velocity zeroed.
-    Drag { to: Point },
-    /// Forgets the selection.
-    Deselect,
-    /// Adds a random velocity to every dumb minion.
-    Agitate {
-        #[serde(default)]
-        strength: Option<f64>,
-    },
-    /// Removes every body of a group.
-    Clear { group: String },
-    /// Spawns `count` particles of a preset at `at`.
-    SpawnParticles {
-        preset: String,
-        at: Point,
-        #[serde(default = "one")]
-        count: u32,
-    },
-    /// Starts an emitter of `count` particles of a preset at `at`.
-    StartEmitter {
-        preset: String,
-        count: u32,
-        at: Point,
-    },
-    /// Sets a world parameter by name to a value in the scene file's form:
-    /// `{"do": "set", "name": "gravity", "value": [0, -9.8]}`.
-    Set {
-        name: String,
-        value: serde_json::Value,
-    },
-}
-
-fn one() -> u32 {
-    1
-}
+pub use ricochet_engine::action::{Action, Direction, MinionShape, Point};
 
 /// Controls of the server's clock and world, besides the world actions.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -90,7 +20,7 @@ pub enum ServerCommand {
     Resume,
     /// Runs `n` steps at once (pausing first), then replies.
     Step {
-        #[serde(default = "one")]
+        #[serde(default = "one_step")]
         n: u32,
     },
     /// Reloads the world's scene from scratch: frame 0, the scene's seed.
@@ -106,6 +36,10 @@ pub enum ServerCommand {
         #[serde(default)]
         text: Option<String>,
     },
+}
+
+fn one_step() -> u32 {
+    1
 }
 
 /// The names of the server commands, to tell them from world actions.
@@ -145,14 +79,20 @@ impl Command {
                 .map(Command::Server)
                 .map_err(|e| format!("`{name}`: {e}"))
         } else {
-            serde_json::from_value(value).map(Command::World).map_err(|e| {
-                let msg = e.to_string();
-                if msg.starts_with(&format!("unknown variant `{name}`")) {
-                    format!("unknown command `{name}` (server: {}; world: press, release, fire_dye_pack, spawn_minion, spawn_dumb_minion, select, drag, deselect, agitate, clear, spawn_particles, start_emitter, set)", SERVER_COMMANDS.join(", "))
-                } else {
-                    format!("`{name}`: {msg}")
-                }
-            })
+            serde_json::from_value(value)
+                .map(Command::World)
+                .map_err(|e| {
+                    let msg = e.to_string();
+                    if msg.starts_with(&format!("unknown variant `{name}`")) {
+                        format!(
+                            "unknown command `{name}` (server: {}; world: {})",
+                            SERVER_COMMANDS.join(", "),
+                            Action::NAMES.join(", ")
+                        )
+                    } else {
+                        format!("`{name}`: {msg}")
+                    }
+                })
         }
     }
 
@@ -257,7 +197,7 @@ mod tests {
         );
         let a: Action =
             serde_json::from_str(r#"{"do":"set","name":"gravity","value":[0,-10]}"#).unwrap();
-        assert!(matches!(a, Action::Set { .. }));
+        assert!(matches!(a, Action::Set(_)));
         let a: Action =
             serde_json::from_str(r#"{"do":"spawn_particles","preset":"fire","at":[1,2]}"#).unwrap();
         assert_eq!(

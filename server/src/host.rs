@@ -11,16 +11,16 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
-use ricochet_protocol::client::Network;
 use ricochet_protocol::command::{Command, Event, Reply, ServerCommand, WorldInfo};
 use ricochet_protocol::frame::FrameEncoder;
 use ricochet_protocol::keys::WorldKeys;
+use ricochet_protocol::net::Network;
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
-use crate::scene;
-use crate::wire;
-use crate::world::World;
+use ricochet_engine::scene;
+use ricochet_engine::world::World;
+use ricochet_protocol::world as wire;
 
 /// Late steps run back to back before the clock gives up and re-anchors.
 pub const MAX_CATCH_UP: u64 = 5;

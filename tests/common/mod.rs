@@ -7,8 +7,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use ricochet_protocol::client::{Client, Mode, Network};
+use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, ServerCommand};
+use ricochet_protocol::net::{Mode, Network};
 
 pub const TIMEOUT: Duration = Duration::from_secs(10);
 

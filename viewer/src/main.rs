@@ -16,9 +16,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{ArgGroup, Parser};
-use ricochet_protocol::client::{parse_event, Client, Mode, Network};
+use ricochet_protocol::client::{parse_event, Client};
 use ricochet_protocol::frame::DecodeError;
 use ricochet_protocol::keys::DEFAULT_WORLD;
+use ricochet_protocol::net::{init_tracing, NetworkArgs};
 
 use crate::sink::WorldSink;
 
@@ -30,12 +31,10 @@ struct Opts {
     /// The world to watch.
     #[arg(long, default_value = DEFAULT_WORLD)]
     world: String,
-    /// Zenoh endpoints to connect to (default tcp/127.0.0.1:7447, where a server listens).
-    #[arg(long = "connect", value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// peer or client (through a router).
-    #[arg(long, default_value = "peer")]
-    mode: Mode,
+    /// Where to find the world's server (default: connect to tcp/127.0.0.1:7447, where a
+    /// server listens).
+    #[command(flatten)]
+    network: NetworkArgs,
 
     /// Serve Rerun's web viewer and its gRPC server on localhost and print the address
     /// (the default).
@@ -193,7 +192,7 @@ fn run(opts: Opts) -> Result<()> {
         .idle_exit
         .or(opts.save.as_ref().map(|_| 10.0))
         .map(Duration::from_secs_f64);
-    let network = Network::client(opts.mode, opts.connect.clone());
+    let network = opts.network.clone().client();
     let client = Client::open(&network, &opts.world)?;
     let info = wait_for_world(&client, Duration::from_secs_f64(opts.wait))?;
     tracing::info!(world = %opts.world, scene = %info.scene, "joined");
@@ -313,13 +312,7 @@ fn run(opts: Opts) -> Result<()> {
 }
 
 fn main() {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| "info,zenoh=warn,re_chunk=error".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    init_tracing("info,zenoh=warn,re_chunk=error");
     if let Err(e) = run(Opts::parse()) {
         eprintln!("ricochet-viewer: {e:#}");
         std::process::exit(1);

@@ -11,15 +11,15 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use ricochet::dump;
-use ricochet::host::{self, HostOptions};
-use ricochet::scene;
-use ricochet::wire;
-use ricochet::world::World;
-use ricochet_protocol::client::{Mode, Network, DEFAULT_ENDPOINT};
+use ricochet_engine::scene;
+use ricochet_engine::world::World;
 use ricochet_protocol::command::{parse_input_log, TimedAction};
 use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
 use ricochet_protocol::keys::DEFAULT_WORLD;
+use ricochet_protocol::net::{init_tracing, Mode, NetworkArgs};
+use ricochet_protocol::world::{self as wire, write_frame};
+use ricochet_server::host::{self, HostOptions};
+use ricochet_server::report::{bench, tradeoff};
 
 #[derive(Parser)]
 #[command(
@@ -30,40 +30,6 @@ use ricochet_protocol::keys::DEFAULT_WORLD;
 struct Cli {
     #[command(subcommand)]
     command: Command,
-}
-
-/// Where a zenoh session connects and listens.
-#[derive(clap::Args, Clone, Debug)]
-struct NetworkArgs {
-    /// Endpoint to listen on, e.g. tcp/127.0.0.1:7447 or tcp/0.0.0.0:7447. Repeatable.
-    #[arg(long, value_name = "ENDPOINT")]
-    listen: Vec<String>,
-    /// Endpoint of a peer or router to connect to, e.g. tcp/10.0.0.5:7447. Repeatable.
-    #[arg(long, value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// peer (talk to peers directly), client (only through a router) or router.
-    #[arg(long, default_value = "peer")]
-    mode: Mode,
-    /// Also discover peers by multicast scouting (off: explicit endpoints only).
-    #[arg(long)]
-    multicast: bool,
-}
-
-impl NetworkArgs {
-    /// A server's network: with no endpoint given, listen on the default one.
-    fn server(self) -> Network {
-        let listen = if self.listen.is_empty() && self.connect.is_empty() {
-            vec![DEFAULT_ENDPOINT.to_string()]
-        } else {
-            self.listen
-        };
-        Network {
-            mode: self.mode,
-            connect: self.connect,
-            listen,
-            multicast: self.multicast,
-        }
-    }
 }
 
 #[derive(Subcommand)]
@@ -178,12 +144,7 @@ enum Command {
 }
 
 fn main() -> Result<()> {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    init_tracing("info");
     match Cli::parse().command {
         Command::Run {
             scene,
@@ -208,19 +169,19 @@ fn main() -> Result<()> {
             only,
             csv,
             set,
-        } => bench(levels, steps, only.as_deref(), csv.as_deref(), &set),
+        } => run_bench(levels, steps, only.as_deref(), csv.as_deref(), &set),
         Command::Tradeoff { out } => {
             std::fs::create_dir_all(&out)
                 .with_context(|| format!("cannot create {}", out.display()))?;
-            let cells = ricochet::tradeoff::run_matrix();
-            std::fs::write(out.join("tradeoff.csv"), ricochet::tradeoff::to_csv(&cells))?;
-            ricochet::tradeoff::chart(&cells, &out.join("tradeoff.png"))?;
+            let cells = tradeoff::run_matrix();
+            std::fs::write(out.join("tradeoff.csv"), tradeoff::to_csv(&cells))?;
+            tradeoff::chart(&cells, &out.join("tradeoff.png"))?;
             for c in &cells {
                 println!(
                     "{:<11} {:<38} {:>9.4} ms  error {:>10.3e}  deepest {:>9.2e}  energy {:>+9.2e}{}{}",
                     c.scene, c.setting, c.ms_per_step, c.error, c.deepest_penetration, c.energy_drift,
                     if c.nan { "  NaN" } else { "" },
-                    if ricochet::tradeoff::on_front(c, &cells) { "  front" } else { "" }
+                    if tradeoff::on_front(c, &cells) { "  front" } else { "" }
                 );
             }
             eprintln!(
@@ -256,18 +217,18 @@ fn main() -> Result<()> {
     }
 }
 
-fn bench(
+fn run_bench(
     levels: u32,
     steps: u64,
     only: Option<&str>,
     csv: Option<&Path>,
     set: &[String],
 ) -> Result<()> {
-    use ricochet::bench::*;
+    use bench::*;
     let settings = if set.is_empty() {
         pyramid_settings()
     } else {
-        let mut config = ricochet::dynamics::WorldConfig::default();
+        let mut config = ricochet_engine::dynamics::WorldConfig::default();
         for s in set {
             config.set_from_str(s)?;
         }
@@ -286,7 +247,8 @@ fn bench(
     if wanted("pyramid") {
         for (name, config) in settings {
             // The chapter's relaxation is too slow for 500 steps of the large pyramid.
-            let n = if config.solver == ricochet::dynamics::Solver::Relaxation && levels > 20 {
+            let n = if config.solver == ricochet_engine::dynamics::Solver::Relaxation && levels > 20
+            {
                 steps.min(20)
             } else {
                 steps
@@ -353,7 +315,7 @@ fn simulate(
         ))),
     };
     if let Some(out) = out.as_mut() {
-        dump::write_frame(out, &world)?;
+        write_frame(out, &world)?;
     }
 
     let progress = indicatif::ProgressBar::new(steps);
@@ -383,7 +345,7 @@ fn simulate(
         world.step();
         stepping += t.elapsed();
         if let Some(out) = out.as_mut() {
-            dump::write_frame(out, &world)?;
+            write_frame(out, &world)?;
         }
         if let Some(w) = wire.as_mut() {
             w.frame(&world);

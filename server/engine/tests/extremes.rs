@@ -4,22 +4,24 @@
 
 use std::path::Path;
 
-use ricochet::scene;
-use ricochet::world::World;
+use ricochet_engine::scene;
+use ricochet_engine::world::World;
 
 fn load(name: &str, overrides: &[&str]) -> World {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../assets/scenes")
+        .join("../../assets/scenes")
         .join(name);
     let text = std::fs::read_to_string(&path).unwrap();
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     scene::parse(&text, &path, &overrides).unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// What a run did: worst drift from the start, deepest penetration seen, final kinetic
+/// What a run did: worst drift from the start over every step, deepest penetration seen, final kinetic
 /// energy, and whether anything went NaN.
 struct Run {
     drift: f64,
+    /// Drift at the last step: where the pile came to rest.
+    settled: f64,
     deepest: f64,
     energy: f64,
     nan: bool,
@@ -28,6 +30,7 @@ struct Run {
 fn run(mut w: World, steps: u64) -> (World, Run) {
     let start: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
     let mut deepest: f64 = 0.0;
+    let mut drift: f64 = 0.0;
     let mut nan = false;
     for _ in 0..steps {
         w.step();
@@ -36,8 +39,15 @@ fn run(mut w: World, steps: u64) -> (World, Run) {
             .bodies()
             .iter()
             .any(|b| !(b.pos.is_finite() && b.vel.is_finite()));
+        // The worst over the whole run, not the value at the last step.
+        drift = w
+            .bodies()
+            .iter()
+            .zip(&start)
+            .map(|(b, p)| (b.pos - *p).length())
+            .fold(drift, f64::max);
     }
-    let drift = w
+    let settled = w
         .bodies()
         .iter()
         .zip(&start)
@@ -48,6 +58,7 @@ fn run(mut w: World, steps: u64) -> (World, Run) {
         w,
         Run {
             drift,
+            settled,
             deepest,
             energy,
             nan,
@@ -61,7 +72,9 @@ const STABLE: &[&str] = &["solver=\"impulses\"", "substeps=2"];
 fn a_tall_stack_stays_at_rest() {
     let (_, r) = run(load("stack-20.toml", STABLE), 600);
     assert!(!r.nan);
-    assert!(r.drift < 0.005, "drift {}", r.drift);
+    // The cold stack sags 0.026 box sizes in its first steps, then comes back.
+    assert!(r.drift < 0.03, "worst drift {}", r.drift);
+    assert!(r.settled < 0.005, "drift at the end {}", r.settled);
     assert!(r.deepest < 0.005, "penetration {}", r.deepest);
     assert!(r.energy < 1e-6, "kinetic energy {}", r.energy);
 }
@@ -94,7 +107,8 @@ fn far_from_the_origin_behaves_as_at_the_origin() {
         here.drift,
         far.drift
     );
-    assert!(far.drift < 0.005);
+    assert!(far.drift < 0.03, "worst drift {}", far.drift);
+    assert!(far.settled < 0.005, "drift at the end {}", far.settled);
 }
 
 #[test]
@@ -212,17 +226,20 @@ fn time_steps_from_1_1000_to_1_15_keep_a_stack_at_rest() {
         let overrides = ["solver=\"impulses\"", &set_sub, &set_dt];
         let (_, r) = run(load("stack-20.toml", &overrides), steps);
         assert!(!r.nan, "dt {dt}");
-        assert!(r.drift < 0.02, "dt {dt}: drift {}", r.drift);
+        assert!(r.drift < 0.03, "dt {dt}: worst drift {}", r.drift);
+        assert!(r.settled < 0.02, "dt {dt}: drift at the end {}", r.settled);
     }
 }
 
 #[test]
 fn relaxation_from_1_to_hundreds_of_iterations_stays_finite() {
-    for n in ["1", "15", "300"] {
+    // Worst drift over the run, in box sizes: one pass lets the pile slump about 0.72,
+    // the chapter's 15 and 300 passes hold it within 0.08.
+    for (n, bound) in [("1", 1.0), ("15", 0.1), ("300", 0.1)] {
         let set = format!("relaxation_iterations={n}");
         let (w, r) = run(load("pyramid-10.toml", &[&set]), 300);
         assert!(!r.nan, "{n} iterations");
-        assert!(r.drift < 5.0, "{n} iterations: drift {}", r.drift);
+        assert!(r.drift < bound, "{n} iterations: drift {}", r.drift);
         assert!(
             w.bodies().iter().all(|b| b.pos.y > -2.0),
             "{n} iterations: a box fell through the ground"
@@ -266,10 +283,10 @@ fn sleeps_and_wakes(overrides: &[&str]) {
     let still: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
     assert_eq!(asleep, still, "sleeping bodies do not move at all");
     // A box dropped on top wakes the stack, which then settles and sleeps again.
-    w.add_body(ricochet::dynamics::BodyDef {
+    w.add_body(ricochet_engine::dynamics::BodyDef {
         id: "falling".into(),
         group: "boxes".into(),
-        shape: ricochet::geometry::Shape::rect(1.0, 1.0),
+        shape: ricochet_engine::geometry::Shape::rect(1.0, 1.0),
         pos: glam::DVec2::new(0.0, 25.0),
         restitution: 0.0,
         ..Default::default()
@@ -335,13 +352,18 @@ fn heavy_on_light_holds_at_two_sub_steps_with_split_impulses() {
     assert!(w.body("light").unwrap().pos.y > 2.0);
 }
 
-/// The large pyramid's setting (6 iterations, 1 sub-step, split impulses, grid) on a
-/// 40-level pyramid (820 boxes): it comes back to where it was built.
+/// The shipped 100-level pyramid (5050 boxes) at its shipped setting: nothing goes NaN,
+/// the worst drift over 500 steps stays under the figure docs/engine.md gives for the
+/// cold start, and the pile ends where it was built.
 #[test]
-fn a_forty_level_pyramid_holds_with_split_impulses_on_the_grid() {
-    let config = ricochet::bench::split_setting(&Default::default(), 6, 1);
-    let (_, r) = run(ricochet::bench::pyramid(40, config), 500);
+fn the_hundred_level_pyramid_holds_at_its_shipped_setting() {
+    let (_, r) = run(load("pyramid-100.toml", &[]), 500);
     assert!(!r.nan);
-    assert!(r.drift < 0.02, "drift {} box sizes", r.drift);
-    assert!(r.deepest < 0.02, "penetration {}", r.deepest);
+    assert!(r.drift < 0.6, "worst drift {} box sizes", r.drift);
+    assert!(r.deepest < 0.05, "penetration {}", r.deepest);
+    assert!(
+        r.settled < 0.05,
+        "drift at step 500 {} box sizes",
+        r.settled
+    );
 }

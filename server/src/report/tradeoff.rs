@@ -6,11 +6,11 @@ use std::time::Instant;
 
 use glam::DVec2;
 
-use crate::bench::split_setting;
-use crate::dynamics::config::{Integrator, Solver, WorldConfig};
-use crate::dynamics::{BodyDef, BroadPhase};
-use crate::geometry::Shape;
-use crate::world::World;
+use super::bench::split_setting;
+use ricochet_engine::dynamics::config::{Integrator, Solver, WorldConfig};
+use ricochet_engine::dynamics::{BodyDef, BroadPhase};
+use ricochet_engine::geometry::Shape;
+use ricochet_engine::world::World;
 
 /// A setting of the matrix: a name and the knobs it turns.
 #[derive(Clone, Debug)]

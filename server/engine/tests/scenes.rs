@@ -3,10 +3,10 @@
 use std::path::Path;
 
 use glam::DVec2;
-use ricochet::geometry::Shape;
-use ricochet::scene::{self, SceneError};
+use ricochet_engine::geometry::Shape;
+use ricochet_engine::scene::{self, SceneError};
 
-fn parse(text: &str) -> Result<ricochet::world::World, SceneError> {
+fn parse(text: &str) -> Result<ricochet_engine::world::World, SceneError> {
     scene::parse(text, Path::new("bad.toml"), &[])
 }
 

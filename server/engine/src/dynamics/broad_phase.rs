@@ -247,7 +247,7 @@ mod tests {
 #[derive(Clone, Debug)]
 pub struct StaticGrid {
     cell: f64,
-    cells: std::collections::HashMap<(i64, i64), Vec<u32>>,
+    cells: super::impulse::KeyMap<(i64, i64), Vec<u32>>,
     /// Members too large for the grid (they would fill too many cells): always tested.
     oversized: Vec<u32>,
     /// The world's layout revision the grid was built for.

@@ -1,13 +1,15 @@
-//! The world as the wire protocol sends it: frames of dynamic state and the statics
-//! snapshot ([`ricochet_protocol::frame`]).
+//! The engine's world in the protocol's forms: an engine [`World`] flows in; frames of
+//! dynamic state and the statics snapshot ([`crate::frame`]) and dump records
+//! ([`crate::dump`]) flow out. The only module of the codec that reads engine types.
 
-use ricochet_protocol::frame::{
-    encode_statics, BodyIn, EmitterIn, FrameEncoder, FrameStats, ParticlesIn,
-};
+use std::io::Write;
 
-use crate::dynamics::Body;
-use crate::geometry::Shape;
-use crate::world::World;
+use ricochet_engine::dynamics::Body;
+use ricochet_engine::geometry::Shape;
+use ricochet_engine::world::World;
+
+use crate::dump::{BodyRecord, FrameRecord, ParticleRecord};
+use crate::frame::{encode_statics, BodyIn, EmitterIn, FrameEncoder, FrameStats, ParticlesIn};
 
 fn body_in<'a>(world: &'a World, b: &'a Body) -> BodyIn<'a> {
     let size = b.shape.size();
@@ -91,4 +93,40 @@ pub fn encode_frame(
         &bodies,
         &particles,
     )
+}
+
+/// The world's state now as a dump record.
+pub fn frame_record(world: &World) -> FrameRecord {
+    let particles = world.particles();
+    FrameRecord {
+        frame: world.frame(),
+        t: world.time(),
+        bodies: world
+            .bodies()
+            .iter()
+            .map(|b| BodyRecord {
+                id: b.id.clone(),
+                x: b.pos.x,
+                y: b.pos.y,
+                vx: b.vel.x,
+                vy: b.vel.y,
+                collided: b.collided,
+            })
+            .collect(),
+        particles: (0..particles.len())
+            .map(|i| ParticleRecord {
+                x: particles.x[i],
+                y: particles.y[i],
+                size: particles.size[i],
+                color: particles.color_of(i).to_array(),
+            })
+            .collect(),
+        emitters: world.emitters().len(),
+    }
+}
+
+/// Writes one line: the world's state as JSON.
+pub fn write_frame(out: &mut impl Write, world: &World) -> std::io::Result<()> {
+    serde_json::to_writer(&mut *out, &frame_record(world))?;
+    out.write_all(b"\n")
 }

@@ -8,12 +8,12 @@ use std::time::Instant;
 
 use glam::{DVec2, Vec2};
 
-use crate::dynamics::config::{Solver, WorldConfig};
-use crate::dynamics::BodyDef;
-use crate::dynamics::BroadPhase;
-use crate::geometry::Shape;
-use crate::particles::ParticleDef;
-use crate::world::World;
+use ricochet_engine::dynamics::config::{Solver, WorldConfig};
+use ricochet_engine::dynamics::BodyDef;
+use ricochet_engine::dynamics::BroadPhase;
+use ricochet_engine::geometry::Shape;
+use ricochet_engine::particles::ParticleDef;
+use ricochet_engine::world::World;
 
 /// One measured case.
 #[derive(Clone, Debug)]

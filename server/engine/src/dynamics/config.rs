@@ -1,6 +1,6 @@
 //! Every world-wide knob in one place, documented field by field: the `[world]` table of a
-//! scene, the `--set NAME=VALUE` overrides of a headless run and the "set parameter"
-//! action all go through [`WorldConfig::set`].
+//! scene, and through [`super::setting::Setting`] the `--set NAME=VALUE` overrides of a
+//! headless run and the `set` action, all checked by [`WorldConfig::validate`].
 
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
@@ -153,48 +153,26 @@ impl Default for WorldConfig {
 /// A refused parameter: which one and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ConfigError {
-    #[error("unknown world parameter `{0}` (known: {known})", known = WorldConfig::NAMES.join(", "))]
+    #[error("unknown world parameter `{0}` (known: {known})", known = super::setting::Setting::NAMES.join(", "))]
     UnknownName(String),
     #[error("world parameter `{name}`: {reason}")]
     Invalid { name: String, reason: String },
 }
 
-fn invalid(name: &str, reason: impl Into<String>) -> ConfigError {
-    ConfigError::Invalid {
-        name: name.to_string(),
-        reason: reason.into(),
+impl ConfigError {
+    pub fn invalid(name: &str, reason: impl Into<String>) -> ConfigError {
+        ConfigError::Invalid {
+            name: name.to_string(),
+            reason: reason.into(),
+        }
     }
 }
 
-impl WorldConfig {
-    /// The names [`WorldConfig::set`] accepts.
-    pub const NAMES: &'static [&'static str] = &[
-        "gravity",
-        "particle_gravity",
-        "dt",
-        "relaxation_iterations",
-        "correction_rate",
-        "seed",
-        "integrator",
-        "mass_scaled_acceleration",
-        "bounds",
-        "solver",
-        "broad_phase",
-        "substeps",
-        "impulse_iterations",
-        "warm_starting",
-        "baumgarte",
-        "slop",
-        "relax_iterations",
-        "contact_hertz",
-        "contact_damping",
-        "split_impulses",
-        "ccd",
-        "sleeping",
-        "sleep_speed",
-        "sleep_delay",
-    ];
+fn invalid(name: &str, reason: impl Into<String>) -> ConfigError {
+    ConfigError::invalid(name, reason)
+}
 
+impl WorldConfig {
     /// The chapter's setter: a rate outside (0, 1) becomes 0.8. Non-finite is refused.
     pub fn set_correction_rate(&mut self, rate: f64) -> Result<(), ConfigError> {
         if !rate.is_finite() {
@@ -300,58 +278,6 @@ impl WorldConfig {
             ));
         }
         Ok(())
-    }
-
-    /// Sets one parameter by name from a TOML value (`--set NAME=VALUE`, the "set
-    /// parameter" action). The value uses the scene file's syntax: `[0, -9.8]`, `0.5`,
-    /// `"explicit"`, `true`.
-    pub fn set(&mut self, name: &str, value: &toml::Value) -> Result<(), ConfigError> {
-        if !Self::NAMES.contains(&name) {
-            return Err(ConfigError::UnknownName(name.to_string()));
-        }
-        if name == "relaxation_iterations" {
-            // Any integer is accepted so that 0 or -3 get the chapter's clamp, not an error.
-            let count = value
-                .as_integer()
-                .ok_or_else(|| invalid(name, format!("expected an integer, got {value}")))?;
-            self.set_relaxation_iterations(count);
-            return Ok(());
-        }
-        // The current parameters with the one field replaced, read back through the same
-        // code as a scene's [world] table.
-        let mut table = toml::Table::try_from(&*self).map_err(|e| invalid(name, e.to_string()))?;
-        table.insert(name.to_string(), value.clone());
-        let mut next: WorldConfig = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e: toml::de::Error| invalid(name, e.message().to_string()))?;
-        next.validate()?;
-        *self = next;
-        Ok(())
-    }
-
-    /// Parses `NAME=VALUE` (the command line's `--set`) and applies it.
-    pub fn set_from_str(&mut self, assignment: &str) -> Result<(), ConfigError> {
-        let (name, value) = assignment
-            .split_once('=')
-            .ok_or_else(|| invalid(assignment, "expected NAME=VALUE"))?;
-        let name = name.trim();
-        let value = parse_toml_value(value.trim()).map_err(|reason| invalid(name, reason))?;
-        self.set(name, &value)
-    }
-}
-
-/// Parses a lone TOML value (`0.5`, `[0, -9.8]`, `"explicit"`). A bare word that is not
-/// valid TOML is taken as a string, so `--set integrator=explicit` works unquoted.
-pub fn parse_toml_value(text: &str) -> Result<toml::Value, String> {
-    let doc = format!("v = {text}");
-    match doc.parse::<toml::Table>() {
-        Ok(mut t) => Ok(t.remove("v").expect("key v was written above")),
-        Err(_)
-            if !text.is_empty() && text.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') =>
-        {
-            Ok(toml::Value::String(text.to_string()))
-        }
-        Err(e) => Err(format!("`{text}` is not a value: {}", e.message())),
     }
 }
 

@@ -9,10 +9,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand};
-use ricochet_protocol::client::{list_worlds, parse_event, Client, Mode, Network};
+use ricochet_protocol::client::{list_worlds, parse_event, Client};
 use ricochet_protocol::command::{parse_input_log, Command, ServerCommand, TimedAction};
 use ricochet_protocol::frame::peek_header;
 use ricochet_protocol::keys::DEFAULT_WORLD;
+use ricochet_protocol::net::{init_tracing, Network, NetworkArgs};
 
 #[derive(Parser)]
 #[command(
@@ -34,12 +35,8 @@ struct Cli {
     /// The world to talk to.
     #[arg(long, global = true, default_value = DEFAULT_WORLD)]
     world: String,
-    /// Endpoint of the server or router (default tcp/127.0.0.1:7447). Repeatable.
-    #[arg(long, global = true, value_name = "ENDPOINT")]
-    connect: Vec<String>,
-    /// peer or client (through a router).
-    #[arg(long, global = true, default_value = "peer")]
-    mode: Mode,
+    #[command(flatten)]
+    network: NetworkArgs,
     /// How long to wait for a reply, in seconds.
     #[arg(long, global = true, default_value_t = 5.0)]
     timeout: f64,
@@ -105,12 +102,7 @@ enum Cmd {
 }
 
 fn main() {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    init_tracing("warn");
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => std::process::exit(code),
@@ -143,7 +135,7 @@ pub fn parse_command_words(words: &[String]) -> Result<Command> {
 }
 
 fn run(cli: Cli) -> Result<i32> {
-    let network = Network::client(cli.mode, cli.connect.clone());
+    let network = cli.network.clone().client();
     let timeout = Duration::from_secs_f64(cli.timeout.max(0.01));
     match cli.command {
         Cmd::Worlds => {

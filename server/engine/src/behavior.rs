@@ -6,7 +6,7 @@
 
 use glam::DVec2;
 
-pub use ricochet_protocol::command::Direction;
+pub use crate::action::Direction;
 
 /// Which directions are held: a held key is a state, not a packet per frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

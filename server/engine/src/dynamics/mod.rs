@@ -8,8 +8,10 @@ pub mod impulse;
 pub mod integrate;
 pub mod pairs;
 pub mod relaxation;
+pub mod setting;
 pub mod sleep;
 
 pub use body::{Body, BodyDef, BodyKey, GroupId};
 pub use broad_phase::BroadPhase;
-pub use config::{Integrator, Solver, WorldConfig};
+pub use config::{ConfigError, Integrator, Solver, WorldConfig};
+pub use setting::Setting;

@@ -101,7 +101,7 @@ impl ParticlePreset {
 /// The presets shipped in `assets/presets/`, built into the binary so a scene can name
 /// them with nothing installed.
 pub const BUILT_IN: &[(&str, &str)] =
-    &[("fire", include_str!("../../../assets/presets/fire.toml"))];
+    &[("fire", include_str!("../../../../assets/presets/fire.toml"))];
 
 /// Presets by name. A scene's own `[preset.NAME]` tables add to or replace the built-ins.
 #[derive(Clone, Debug, Default, PartialEq)]

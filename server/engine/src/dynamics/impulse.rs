@@ -16,7 +16,6 @@
 //!
 //! Shapes do not rotate, so one contact per pair carries all of it.
 
-use std::collections::HashMap;
 
 use glam::DVec2;
 
@@ -37,30 +36,9 @@ pub const SPECULATIVE_GAP: f64 = 0.02;
 /// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
 
-/// A fast hash of small integer keys (the multiply-rotate of rustc's FxHasher). Only
-/// lookups use it, never iteration order, so results stay deterministic.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct KeyHasher(u64);
-
-impl std::hash::Hasher for KeyHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    fn write_u32(&mut self, n: u32) {
-        self.write_u64(n as u64);
-    }
-    fn write_u64(&mut self, n: u64) {
-        self.0 = (self.0.rotate_left(5) ^ n).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-    }
-}
-
-/// A hash map keyed by small integers.
-pub type KeyMap<K, V> = HashMap<K, V, std::hash::BuildHasherDefault<KeyHasher>>;
+/// A hash map keyed by small integers (rustc's Fx hash). Only lookups use it, never
+/// iteration order, so results stay deterministic.
+pub type KeyMap<K, V> = rustc_hash::FxHashMap<K, V>;
 
 /// The solver's settings for one frame.
 #[derive(Clone, Copy, Debug)]

@@ -6,7 +6,7 @@
 //! packs, spawns and agitates minions and particles, so behaviours and actions are covered.
 //!
 //! A change that alters physics on purpose regenerates the table with
-//! `RICOCHET_PRINT_DIGESTS=1 cargo test -p ricochet-server --test digests -- --nocapture`
+//! `RICOCHET_PRINT_DIGESTS=1 cargo test -p ricochet-engine --test digests -- --nocapture`
 //! and says so in its commit.
 
 use std::path::Path;
@@ -16,7 +16,80 @@ use sha2::{Digest, Sha256};
 const STEPS: u64 = 300;
 
 /// (scene, digest of its 301 states: before the first step and after each).
-const EXPECTED: &[(&str, &str)] = &[];
+const EXPECTED: &[(&str, &str)] = &[
+    (
+        "bounds",
+        "afc39e69edd5de140eca525bf1f789b30bcef0b61704d5c0fb4dbe7975979dca",
+    ),
+    (
+        "coincident",
+        "f11858542137b4897b4003f661e34347bb82c2e682fd9f4b838acbbee49339dd",
+    ),
+    (
+        "emitters",
+        "771bcb76214bb6c9c83b3ff6a0e0b71f8751c7e5d6f58d9bfea83b02597ab6fe",
+    ),
+    (
+        "far-from-origin",
+        "9eb4afc6f8603065715fd3d5a62b1a1d193bb1aee4378009ba84382939032f55",
+    ),
+    (
+        "huge",
+        "a7626b7e583b9f08724a6b5641e0a2b112f49f6ec20cdf8b540f94a6b506466a",
+    ),
+    (
+        "impulse",
+        "b17f6debbe0252a09e61c8700297e6ff762edc3fed470db0df82e1749fd7db85",
+    ),
+    (
+        "mass-ratio-1000",
+        "ae92dd086e6284791a4e95e3e06f5208c6e2e81be2b4de998cc2aacdf0ce9b76",
+    ),
+    (
+        "overlap-quarter",
+        "7555ee5328abaedac76b7e0d207aebce7eec480299b1fd77b27a021aef989514",
+    ),
+    (
+        "particles",
+        "70243678c067bbae9032b786958ced9312cc160d16098c958200de243dbfbedc",
+    ),
+    (
+        "particles-100k",
+        "611cb692f496ee98b6264b7dfff539d92f04c0d0c8e2fb4319ac32243c14ba62",
+    ),
+    (
+        "particles-10k",
+        "bf2345fac26a64857008539524425f83840438d6c042062a5e315ead47bc17b9",
+    ),
+    (
+        "particles-idle-10k",
+        "309a1af1d660985ddccc63f65bcc1d738381cfc5a0b9d2418e3e2d5cd6a8c75c",
+    ),
+    (
+        "pyramid-10",
+        "d107c6d4c982d0c71c68cb43008cb65f2abda63a8477f75a101d6f138df1ebe1",
+    ),
+    (
+        "pyramid-100",
+        "3890a41137bfb1ec9a4a1751a4bd1c1c7bd50b92cdb23bb1bc5c8bc0dba79712",
+    ),
+    (
+        "stack-20",
+        "94b622228085cedbd34ec750ae99f8028b6e84dcaae2d2f5781f7941ed33ebc7",
+    ),
+    (
+        "tiny",
+        "37f7ec009766add287b03be4d303190111cede8a62506fe5334a1d3a8daf8816",
+    ),
+    (
+        "tunnelling",
+        "0bc0a7848d0275feb798f593f561a4d7ca7529a4084d7115bac9c95c98f0eb2b",
+    ),
+    (
+        "zero-mass",
+        "935d939cc87c56f7ed44e3c147ce5fba90a6ffbfa7809c09f71fad6bbd2d7da8",
+    ),
+];
 
 /// The chapter demos' input log: frame, action as a client sends it.
 const DEMO_INPUTS: &[(u64, &str)] = &[
@@ -29,9 +102,18 @@ const DEMO_INPUTS: &[(u64, &str)] = &[
     (80, r#"{"do":"spawn_dumb_minion","at":[100,95]}"#),
     (82, r#"{"do":"spawn_dumb_minion","at":[104,95]}"#),
     (84, r#"{"do":"spawn_minion","at":[120,60]}"#),
-    (90, r#"{"do":"spawn_particles","preset":"fire","at":[100,60],"count":50}"#),
-    (95, r#"{"do":"start_emitter","preset":"fire","count":120,"at":[80,50]}"#),
-    (100, r#"{"do":"select","at":[100,95],"group":"dumb_minions"}"#),
+    (
+        90,
+        r#"{"do":"spawn_particles","preset":"fire","at":[100,60],"count":50}"#,
+    ),
+    (
+        95,
+        r#"{"do":"start_emitter","preset":"fire","count":120,"at":[80,50]}"#,
+    ),
+    (
+        100,
+        r#"{"do":"select","at":[100,95],"group":"dumb_minions"}"#,
+    ),
     (110, r#"{"do":"drag","to":[60,80]}"#),
     (111, r#"{"do":"deselect"}"#),
     (150, r#"{"do":"agitate","strength":40}"#),
@@ -42,10 +124,10 @@ const DEMO_INPUTS: &[(u64, &str)] = &[
 const DEMOS: &[&str] = &["bounds", "impulse", "particles", "emitters"];
 
 fn scenes_dir() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes")
 }
 
-fn hash_state(h: &mut Sha256, world: &ricochet::world::World) {
+fn hash_state(h: &mut Sha256, world: &ricochet_engine::world::World) {
     h.update(world.frame().to_le_bytes());
     h.update(world.time().to_bits().to_le_bytes());
     h.update((world.bodies().len() as u64).to_le_bytes());
@@ -72,8 +154,8 @@ fn hash_state(h: &mut Sha256, world: &ricochet::world::World) {
 
 fn digest(name: &str) -> String {
     let path = scenes_dir().join(format!("{name}.toml"));
-    let mut world = ricochet::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-    let inputs: Vec<(u64, ricochet::action::Action)> = if DEMOS.contains(&name) {
+    let mut world = ricochet_engine::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let inputs: Vec<(u64, ricochet_engine::action::Action)> = if DEMOS.contains(&name) {
         DEMO_INPUTS
             .iter()
             .map(|(f, a)| (*f, serde_json::from_str(a).expect("a valid action")))

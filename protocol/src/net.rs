@@ -1,0 +1,203 @@
+//! How every Ricochet process joins the network: the one set of network flags the
+//! server, the viewer and the CLI share ([`NetworkArgs`]), the zenoh session they build
+//! from it ([`Network::open`]), and the one tracing set-up ([`init_tracing`]).
+//!
+//! Flags flow in; a configured zenoh session flows out.
+
+use anyhow::{anyhow, Result};
+use zenoh::{Session, Wait};
+
+/// The endpoint a server listens on, and clients connect to, when none is given.
+pub const DEFAULT_ENDPOINT: &str = "tcp/127.0.0.1:7447";
+
+/// How a zenoh session joins the network.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// Talks directly to the peers it connects to or that connect to it.
+    #[default]
+    Peer,
+    /// Talks only through the router it connects to.
+    Client,
+    /// Routes for others: where worlds on several hosts meet.
+    Router,
+}
+
+impl Mode {
+    /// The mode as zenoh's configuration spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Peer => "peer",
+            Mode::Client => "client",
+            Mode::Router => "router",
+        }
+    }
+}
+
+/// Where a zenoh session connects and listens: the flags of every Ricochet binary
+/// (global, so they may come before or after a subcommand).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct NetworkArgs {
+    /// Endpoint to listen on, e.g. tcp/127.0.0.1:7447 or tcp/0.0.0.0:7447. Repeatable.
+    #[arg(long, global = true, value_name = "ENDPOINT")]
+    pub listen: Vec<String>,
+    /// Endpoint of a peer or router to connect to, e.g. tcp/10.0.0.5:7447. Repeatable.
+    #[arg(long, global = true, value_name = "ENDPOINT")]
+    pub connect: Vec<String>,
+    /// peer (talk to peers directly), client (only through a router) or router.
+    #[arg(long, global = true, value_enum, default_value_t = Mode::Peer)]
+    pub mode: Mode,
+    /// Also discover peers by multicast scouting (off: explicit endpoints only).
+    #[arg(long, global = true)]
+    pub multicast: bool,
+}
+
+impl NetworkArgs {
+    /// A server's network: with no endpoint given, listen on the default one.
+    pub fn server(self) -> Network {
+        let listen = if self.listen.is_empty() && self.connect.is_empty() {
+            vec![DEFAULT_ENDPOINT.to_string()]
+        } else {
+            self.listen
+        };
+        Network {
+            mode: self.mode,
+            connect: self.connect,
+            listen,
+            multicast: self.multicast,
+        }
+    }
+
+    /// A client's network: with no endpoint given, connect to the default one.
+    pub fn client(self) -> Network {
+        let connect = if self.listen.is_empty() && self.connect.is_empty() {
+            vec![DEFAULT_ENDPOINT.to_string()]
+        } else {
+            self.connect
+        };
+        Network {
+            mode: self.mode,
+            connect,
+            listen: self.listen,
+            multicast: self.multicast,
+        }
+    }
+}
+
+/// Where and how a session connects.
+#[derive(Clone, Debug, Default)]
+pub struct Network {
+    pub mode: Mode,
+    /// Endpoints to connect to (`tcp/host:port`).
+    pub connect: Vec<String>,
+    /// Endpoints to listen on.
+    pub listen: Vec<String>,
+    /// Multicast scouting (off by default: explicit endpoints only).
+    pub multicast: bool,
+}
+
+impl Network {
+    /// A client's network: connect to `connect`, or to the default endpoint.
+    pub fn client(mode: Mode, connect: Vec<String>) -> Self {
+        NetworkArgs {
+            mode,
+            connect,
+            ..NetworkArgs::default()
+        }
+        .client()
+    }
+
+    /// The zenoh configuration.
+    pub fn config(&self) -> Result<zenoh::Config> {
+        let mut config = zenoh::Config::default();
+        let set = |config: &mut zenoh::Config, key: &str, value: serde_json::Value| {
+            config
+                .insert_json5(key, &value.to_string())
+                .map_err(|e| anyhow!("zenoh configuration {key} = {value}: {e}"))
+        };
+        set(&mut config, "mode", serde_json::json!(self.mode.name()))?;
+        set(
+            &mut config,
+            "connect/endpoints",
+            serde_json::json!(self.connect),
+        )?;
+        set(
+            &mut config,
+            "listen/endpoints",
+            serde_json::json!(self.listen),
+        )?;
+        set(
+            &mut config,
+            "scouting/multicast/enabled",
+            serde_json::json!(self.multicast),
+        )?;
+        // Keep retrying a connect endpoint that is not up yet, so a client may start
+        // before its server or router.
+        set(&mut config, "connect/timeout_ms", serde_json::json!(-1))?;
+        Ok(config)
+    }
+
+    /// Opens the session.
+    pub fn open(&self) -> Result<Session> {
+        zenoh::open(self.config()?).wait().map_err(|e| {
+            anyhow!(
+                "cannot open a zenoh session ({} mode, connect {:?}, listen {:?}): {e}",
+                self.mode.name(),
+                self.connect,
+                self.listen
+            )
+        })
+    }
+}
+
+/// Logs to standard error, filtered by `RUST_LOG` or else by `default_filter`
+/// (e.g. `"info,zenoh=warn"`). Call once, first thing in `main`.
+pub fn init_tracing(default_filter: &str) {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| default_filter.into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Flags {
+        #[command(flatten)]
+        net: NetworkArgs,
+    }
+
+    fn flags(args: &[&str]) -> NetworkArgs {
+        Flags::try_parse_from(std::iter::once("x").chain(args.iter().copied()))
+            .unwrap_or_else(|e| panic!("{e}"))
+            .net
+    }
+
+    #[test]
+    fn servers_listen_and_clients_connect_on_the_default_endpoint() {
+        let server = flags(&[]).server();
+        assert_eq!(server.listen, [DEFAULT_ENDPOINT]);
+        assert!(server.connect.is_empty());
+        let client = flags(&[]).client();
+        assert_eq!(client.connect, [DEFAULT_ENDPOINT]);
+        assert!(client.listen.is_empty());
+    }
+
+    #[test]
+    fn flags_override_the_defaults() {
+        let n = flags(&["--mode", "client", "--connect", "tcp/10.0.0.5:7447"]).server();
+        assert_eq!(n.mode, Mode::Client);
+        assert!(n.listen.is_empty());
+        assert_eq!(n.connect, ["tcp/10.0.0.5:7447"]);
+        let e = Flags::try_parse_from(["x", "--mode", "satellite"])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("satellite"), "{e}");
+    }
+}

@@ -1,0 +1,209 @@
+//! What clients may do to a world, as typed values: the controls of the chapter's demos
+//! and the engine's knobs.
+//!
+//! An [`Action`] is applied between steps by [`crate::world::World::apply`], which checks
+//! every argument and changes nothing when it refuses one. The network layer stamps each
+//! action with the frame it takes effect in. Actions read and write as JSON objects whose
+//! `do` field names them (`{"do": "fire_dye_pack", "at": [50, 60]}`): the form clients
+//! send and input logs keep.
+
+use serde::{Deserialize, Serialize};
+
+use crate::dynamics::config::ConfigError;
+use crate::dynamics::setting::Setting;
+
+/// A direction of the hero's controls (the chapter's WASD keys).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Direction {
+    Up,
+    Down,
+    Left,
+    Right,
+}
+
+/// A point `[x, y]` in world units.
+pub type Point = [f64; 2];
+
+/// The shape of a spawned minion: the chapter's circle, or the bounds demo's rectangle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MinionShape {
+    #[default]
+    Circle,
+    Rect,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Action {
+    /// Starts holding a direction of the hero's controls.
+    Press { dir: Direction },
+    /// Stops holding a direction.
+    Release { dir: Direction },
+    /// Sends a dye pack from `at`, homing on the hero.
+    FireDyePack { at: Point },
+    /// Spawns a patrolling minion at `at` (a circle unless `shape` is "rect").
+    SpawnMinion {
+        at: Point,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        shape: Option<MinionShape>,
+    },
+    /// Spawns a dumb minion (the stability demo's test body) at `at`.
+    SpawnDumbMinion { at: Point },
+    /// Selects the body under `at` (among `group`, or any dynamic body).
+    Select {
+        at: Point,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        group: Option<String>,
+    },
+    /// Moves the selected body to `to`, its velocity zeroed.
+    Drag { to: Point },
+    /// Forgets the selection.
+    Deselect,
+    /// Adds a random velocity to every dumb minion.
+    Agitate {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        strength: Option<f64>,
+    },
+    /// Removes every body of a group.
+    Clear { group: String },
+    /// Spawns `count` particles of a preset at `at`.
+    SpawnParticles {
+        preset: String,
+        at: Point,
+        #[serde(default = "one")]
+        count: u32,
+    },
+    /// Starts an emitter of `count` particles of a preset at `at`.
+    StartEmitter {
+        preset: String,
+        count: u32,
+        at: Point,
+    },
+    /// Sets one world parameter, named and typed by [`Setting`]:
+    /// `{"do": "set", "name": "gravity", "value": [0, -9.8]}`.
+    Set(Setting),
+}
+
+fn one() -> u32 {
+    1
+}
+
+impl Action {
+    /// The names of every action, as the `do` field spells them.
+    pub const NAMES: &'static [&'static str] = &[
+        "press",
+        "release",
+        "fire_dye_pack",
+        "spawn_minion",
+        "spawn_dumb_minion",
+        "select",
+        "drag",
+        "deselect",
+        "agitate",
+        "clear",
+        "spawn_particles",
+        "start_emitter",
+        "set",
+    ];
+}
+
+/// What an applied action created or chose, by body id.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ActionOutcome {
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ids: Vec<String>,
+}
+
+/// Why an action was refused; the world is unchanged.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ActionError {
+    #[error("`{field}` {reason}")]
+    BadArgument { field: &'static str, reason: String },
+    #[error("there is no hero in this world")]
+    NoHero,
+    #[error("no body is selected")]
+    NothingSelected,
+    #[error("unknown particle preset `{name}` (known: {known})")]
+    UnknownPreset { name: String, known: String },
+    #[error("unknown group `{0}`")]
+    UnknownGroup(String),
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+}
+
+/// The largest particle count one action may ask for.
+pub const MAX_PARTICLES_PER_ACTION: u32 = 1_000_000;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(json: &str) -> Action {
+        serde_json::from_str(json).unwrap_or_else(|e| panic!("{json}: {e}"))
+    }
+
+    #[test]
+    fn actions_read_as_json_a_person_can_type() {
+        assert_eq!(
+            read(r#"{"do":"fire_dye_pack","at":[50,60.5]}"#),
+            Action::FireDyePack { at: [50.0, 60.5] }
+        );
+        assert_eq!(
+            read(r#"{"do":"press","dir":"left"}"#),
+            Action::Press {
+                dir: Direction::Left
+            }
+        );
+        assert_eq!(
+            read(r#"{"do":"spawn_particles","preset":"fire","at":[1,2]}"#),
+            Action::SpawnParticles {
+                preset: "fire".into(),
+                at: [1.0, 2.0],
+                count: 1
+            }
+        );
+        assert_eq!(
+            read(r#"{"do":"spawn_minion","at":[1,2],"shape":"rect"}"#),
+            Action::SpawnMinion {
+                at: [1.0, 2.0],
+                shape: Some(MinionShape::Rect)
+            }
+        );
+    }
+
+    #[test]
+    fn set_reads_a_typed_setting_and_writes_the_same_text() {
+        let a = read(r#"{"do":"set","name":"gravity","value":[0,-10]}"#);
+        assert_eq!(
+            a,
+            Action::Set(Setting::Gravity(glam::DVec2::new(0.0, -10.0)))
+        );
+        let back = serde_json::to_string(&a).unwrap();
+        assert_eq!(read(&back), a);
+        assert_eq!(
+            read(r#"{"do":"set","name":"solver","value":"impulses"}"#),
+            Action::Set(Setting::Solver(crate::dynamics::Solver::Impulses))
+        );
+    }
+
+    #[test]
+    fn malformed_actions_name_what_is_wrong() {
+        for (json, needle) in [
+            (r#"{"do":"set","name":"nope","value":1}"#, "nope"),
+            (r#"{"do":"set","name":"dt","value":"fast"}"#, "fast"),
+            (r#"{"do":"set","name":"gravity","value":[1]}"#, "2"),
+            (
+                r#"{"do":"spawn_minion","at":[1,2],"shape":"hexagon"}"#,
+                "hexagon",
+            ),
+            (r#"{"do":"drag","to":[1,2],"speed":3}"#, "speed"),
+        ] {
+            let e = serde_json::from_str::<Action>(json)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{json}: {e}");
+        }
+    }
+}

@@ -1,0 +1,258 @@
+//! Actions applied between steps ([`World::apply`]): every argument checked, and a
+//! refused action changes nothing.
+
+use glam::DVec2;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::action::{Action, ActionError, ActionOutcome, MinionShape, MAX_PARTICLES_PER_ACTION};
+use crate::behavior::{self, Behavior};
+use crate::dynamics::body::BodyDef;
+use crate::geometry::Shape;
+use crate::particles::Emitter;
+
+use super::World;
+
+impl World {
+    /// Applies an action between steps. A refused action changes nothing.
+    pub fn apply(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
+        // Anything that moves bodies or changes the world's parameters wakes it.
+        if !matches!(
+            action,
+            Action::Press { .. }
+                | Action::Release { .. }
+                | Action::Select { .. }
+                | Action::Deselect
+        ) {
+            self.wake_all();
+        }
+        let point = |field: &'static str, p: [f64; 2]| -> Result<DVec2, ActionError> {
+            let v = DVec2::from(p);
+            if v.is_finite() && v.abs().max_element() <= crate::dynamics::body::MAX_COORDINATE {
+                Ok(v)
+            } else {
+                Err(ActionError::BadArgument {
+                    field,
+                    reason: format!(
+                        "{v} must be finite and within ±{}",
+                        crate::dynamics::body::MAX_COORDINATE
+                    ),
+                })
+            }
+        };
+        let none = Ok(ActionOutcome::default());
+        match action {
+            Action::Press { dir } | Action::Release { dir } => {
+                let pressed = matches!(action, Action::Press { .. });
+                let hero = self
+                    .bodies
+                    .iter_mut()
+                    .find_map(|b| match &mut b.behavior {
+                        Behavior::Hero { held } => Some(held),
+                        _ => None,
+                    })
+                    .ok_or(ActionError::NoHero)?;
+                hero.set(*dir, pressed);
+                none
+            }
+            Action::FireDyePack { at } => {
+                let at = point("at", *at)?;
+                let id = self.fresh_id("dye_pack");
+                self.spawn(BodyDef {
+                    id: id.clone(),
+                    group: "dye_packs".into(),
+                    shape: Shape::circle(behavior::DYE_PACK_RADIUS),
+                    pos: at,
+                    mass: behavior::DYE_PACK_MASS,
+                    gravity: Some(DVec2::ZERO),
+                    behavior: Behavior::DyePack {
+                        heading: DVec2::Y,
+                        life: behavior::DYE_PACK_LIFE,
+                    },
+                    ..BodyDef::default()
+                })
+            }
+            Action::SpawnMinion { at, shape } => {
+                let at = point("at", *at)?;
+                let shape = match shape.unwrap_or_default() {
+                    MinionShape::Circle => Shape::circle(behavior::MINION_RADIUS),
+                    MinionShape::Rect => {
+                        Shape::rect(behavior::MINION_RECT.x, behavior::MINION_RECT.y)
+                    }
+                };
+                let dir = if self.rng.random::<bool>() { 1.0 } else { -1.0 };
+                let id = self.fresh_id("minion");
+                self.spawn(BodyDef {
+                    id,
+                    group: "minions".into(),
+                    shape,
+                    pos: at,
+                    vel: DVec2::new(dir * behavior::MINION_SPEED, 0.0),
+                    mass: behavior::MINION_MASS,
+                    friction: 0.0,
+                    gravity: Some(DVec2::ZERO),
+                    behavior: Behavior::Patrol {
+                        speed: behavior::MINION_SPEED,
+                        dir,
+                    },
+                    ..BodyDef::default()
+                })
+            }
+            Action::SpawnDumbMinion { at } => {
+                let at = point("at", *at)?;
+                let shape = if self.rng.random::<bool>() {
+                    Shape::circle(behavior::MINION_RADIUS)
+                } else {
+                    Shape::rect(behavior::MINION_RECT.x, behavior::MINION_RECT.y)
+                };
+                let id = self.fresh_id("dumb_minion");
+                self.spawn(BodyDef {
+                    id,
+                    group: "dumb_minions".into(),
+                    shape,
+                    pos: at,
+                    behavior: Behavior::DumbMinion,
+                    ..BodyDef::default()
+                })
+            }
+            Action::Select { at, group } => {
+                let at = point("at", *at)?;
+                let group = match group {
+                    Some(name) => Some(
+                        self.group(name)
+                            .ok_or_else(|| ActionError::UnknownGroup(name.clone()))?,
+                    ),
+                    None => None,
+                };
+                // The last body drawn over the point wins: the one on top.
+                let hit = self
+                    .bodies
+                    .iter()
+                    .rev()
+                    .filter(|b| group.map_or(!b.is_static(), |g| b.group == g))
+                    .find(|b| b.shape.contains(b.pos, at) || b.pos == at);
+                self.selected = hit.map(|b| b.key);
+                Ok(ActionOutcome {
+                    ids: hit.map(|b| vec![b.id.clone()]).unwrap_or_default(),
+                })
+            }
+            Action::Drag { to } => {
+                let to = point("to", *to)?;
+                let key = self.selected.ok_or(ActionError::NothingSelected)?;
+                let body = self
+                    .bodies
+                    .iter_mut()
+                    .find(|b| b.key == key)
+                    .ok_or(ActionError::NothingSelected)?;
+                body.pos = to;
+                body.vel = DVec2::ZERO;
+                if body.is_static() && body.asleep.is_none() {
+                    self.layout_revision += 1;
+                    self.statics_revision += 1;
+                }
+                Ok(ActionOutcome {
+                    ids: vec![body.id.clone()],
+                })
+            }
+            Action::Deselect => {
+                self.selected = None;
+                none
+            }
+            Action::Agitate { strength } => {
+                let s = strength.unwrap_or(behavior::DEFAULT_AGITATION);
+                if !(0.0..=crate::dynamics::body::MAX_COORDINATE).contains(&s) {
+                    return Err(ActionError::BadArgument {
+                        field: "strength",
+                        reason: format!("{s} must be a finite number, 0 or above"),
+                    });
+                }
+                let mut ids = Vec::new();
+                for b in &mut self.bodies {
+                    if matches!(b.behavior, Behavior::DumbMinion) && !b.is_static() {
+                        let kick = DVec2::new(
+                            self.rng.random_range(-1.0..=1.0),
+                            self.rng.random_range(-1.0..=1.0),
+                        );
+                        b.vel += kick * s;
+                        ids.push(b.id.clone());
+                    }
+                }
+                Ok(ActionOutcome { ids })
+            }
+            Action::Clear { group } => {
+                let g = self
+                    .group(group)
+                    .ok_or_else(|| ActionError::UnknownGroup(group.clone()))?;
+                let ids = self
+                    .bodies
+                    .iter()
+                    .filter(|b| b.group == g)
+                    .map(|b| b.id.clone())
+                    .collect();
+                self.remove_bodies(|b| b.group == g);
+                Ok(ActionOutcome { ids })
+            }
+            Action::SpawnParticles { preset, at, count } => {
+                let at = point("at", *at)?.as_vec2();
+                check_count(*count)?;
+                let gravity = self.config.particle_gravity.as_vec2();
+                let recipe = self
+                    .presets
+                    .get(preset)
+                    .ok_or_else(|| self.unknown_preset(preset))?;
+                for _ in 0..*count {
+                    let def = recipe.spawn(at, &mut self.rng);
+                    self.particles.push(&def, gravity);
+                }
+                none
+            }
+            Action::StartEmitter { preset, count, at } => {
+                let at = point("at", *at)?.as_vec2();
+                check_count(*count)?;
+                if self.presets.get(preset).is_none() {
+                    return Err(self.unknown_preset(preset));
+                }
+                self.emitters.push(Emitter {
+                    pos: at,
+                    remaining: *count,
+                    preset: preset.clone(),
+                });
+                none
+            }
+            Action::Set(setting) => {
+                let before = self.config.seed;
+                self.config.set(setting.clone())?;
+                if self.config.seed != before {
+                    self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
+                }
+                none
+            }
+        }
+    }
+
+    pub(super) fn spawn(&mut self, def: BodyDef) -> Result<ActionOutcome, ActionError> {
+        let id = def.id.clone();
+        self.add_body(def).map_err(|e| ActionError::BadArgument {
+            field: "at",
+            reason: e.to_string(),
+        })?;
+        Ok(ActionOutcome { ids: vec![id] })
+    }
+
+    pub(super) fn unknown_preset(&self, name: &str) -> ActionError {
+        ActionError::UnknownPreset {
+            name: name.to_string(),
+            known: self.presets.names().collect::<Vec<_>>().join(", "),
+        }
+    }
+}
+
+fn check_count(count: u32) -> Result<(), ActionError> {
+    if count > MAX_PARTICLES_PER_ACTION {
+        return Err(ActionError::BadArgument {
+            field: "count",
+            reason: format!("{count} is more than {MAX_PARTICLES_PER_ACTION} particles at once"),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! Candidate pairs of an interaction from the configured broad phase: the grid's
+//! persistent pairs, a large all-static group's cached grid, or sweep and prune, always in
+//! all-pairs order so every broad phase gives the same result.
+
+use crate::dynamics::body::GroupId;
+use crate::dynamics::broad_phase::{
+    grid_pairs, sweep_pairs, BroadPhase, StaticGrid, STATIC_GRID_MIN_MEMBERS,
+};
+
+use super::{Side, World};
+
+impl World {
+    /// Candidate pairs of the interaction between groups `a` and `b`, in all-pairs order:
+    /// from the grid broad phase's kept pairs; or, with the sweep, against a large
+    /// all-static group from its cached grid, otherwise by sweep and prune.
+    pub(super) fn candidates(
+        &mut self,
+        a: GroupId,
+        b: GroupId,
+        dt: f64,
+        out: &mut Vec<(u32, u32)>,
+    ) {
+        if self.config.broad_phase == BroadPhase::Grid {
+            self.grid_candidates(a, b, dt, out);
+            return;
+        }
+        if a != b {
+            for (fixed, moving, static_first) in [(b, a, false), (a, b, true)] {
+                if self.static_grid(fixed) {
+                    let grid = self.static_grids[fixed as usize]
+                        .1
+                        .as_ref()
+                        .expect("checked above");
+                    let (ms, ss) = (
+                        &self.groups[moving as usize].members,
+                        &self.groups[fixed as usize].members,
+                    );
+                    grid_pairs(&self.bodies, ms, ss, grid, static_first, dt, out);
+                    return;
+                }
+            }
+        }
+        let (ga, gb) = (
+            &self.groups[a as usize].members,
+            &self.groups[b as usize].members,
+        );
+        sweep_pairs(&self.bodies, ga, gb, a == b, dt, &mut self.sweep, out);
+    }
+
+    /// Whether group `g` has a static grid now (building it if the layout changed).
+    pub(super) fn static_grid(&mut self, g: GroupId) -> bool {
+        let g = g as usize;
+        if self.static_grids.len() <= g {
+            self.static_grids.resize_with(g + 1, || (0, None));
+        }
+        if self.static_grids[g].0 != self.layout_revision {
+            let members = &self.groups[g].members;
+            let eligible = members.len() > STATIC_GRID_MIN_MEMBERS
+                && members.iter().all(|&i| {
+                    self.bodies[i as usize].is_static() && self.bodies[i as usize].asleep.is_none()
+                });
+            let grid =
+                eligible.then(|| StaticGrid::build(&self.bodies, members, self.layout_revision));
+            self.static_grids[g] = (self.layout_revision, grid);
+        }
+        self.static_grids[g].1.is_some()
+    }
+
+    /// The group pairs of the resolving interactions between groups.
+    pub(super) fn resolving(&self) -> Vec<(GroupId, GroupId)> {
+        self.interactions
+            .iter()
+            .filter_map(|it| match (it.a, it.b, it.resolve) {
+                (Side::Group(a), Side::Group(b), true) => Some((a, b)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// Brings the grid broad phase's persistent pairs up to date.
+    pub(super) fn update_pair_set(&mut self, dt: f64) {
+        let resolving = self.resolving();
+        self.pair_set.update(
+            &self.bodies,
+            self.layout_revision,
+            &resolving,
+            &self.movers,
+            dt,
+        );
+    }
+
+    /// Candidate pairs of the interaction between groups `a` and `b` from the grid broad
+    /// phase, in all-pairs order (group members are in body order).
+    pub(super) fn grid_candidates(
+        &mut self,
+        a: GroupId,
+        b: GroupId,
+        dt: f64,
+        out: &mut Vec<(u32, u32)>,
+    ) {
+        self.update_pair_set(dt);
+        out.clear();
+        let bodies = &self.bodies;
+        for p in &self.pair_set.pairs {
+            let (ga, gb) = (bodies[p.a as usize].group, bodies[p.b as usize].group);
+            if (ga, gb) == (a, b) {
+                out.push((p.a, p.b));
+            }
+            if (gb, ga) == (a, b) {
+                out.push((p.b, p.a));
+            }
+        }
+        out.sort_unstable();
+    }
+}

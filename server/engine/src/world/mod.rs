@@ -1,0 +1,254 @@
+//! The world: bodies in groups, particles, emitters, the declared interactions, one
+//! seeded random generator, and the step that ties them together.
+//!
+//! A step runs in the chapter's order: move every body (demo behaviours, then
+//! integration), then every particle (removing the expired, then emitting), then the
+//! declared interactions in their order, each rigid pair of groups with its own
+//! relaxation loop and each particle pair by projection. Nothing is computed for what
+//! no interaction names.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::dynamics::body::{Body, BodyKey, GroupId};
+use crate::dynamics::broad_phase::{StaticGrid, SweepBuffers};
+use crate::dynamics::config::WorldConfig;
+use crate::dynamics::impulse::{ContactCache, SolverBuffers};
+use crate::dynamics::pairs::{Pair, PairSet};
+use crate::particles::{Emitter, Particles, PresetLibrary};
+
+mod actions;
+mod candidates;
+mod demo;
+mod step;
+mod store;
+
+/// Particle interactions with at least this many shapes bin them in a grid.
+pub const PARTICLE_GRID_MIN_SHAPES: usize = 8;
+
+/// One side of an interaction: a group of bodies or the particle system.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    Group(GroupId),
+    Particles,
+}
+
+/// A declared interaction, tested every step in declaration order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Interaction {
+    pub a: Side,
+    pub b: Side,
+    /// false: collisions are only flagged (the bounds demo), nothing moves.
+    pub resolve: bool,
+}
+
+/// The name a scene uses for the particle side of an interaction.
+pub const PARTICLES: &str = "particles";
+
+/// A named group and its members (indices into the body array, in body order).
+#[derive(Clone, Debug, Default)]
+struct Group {
+    name: String,
+    members: Vec<u32>,
+}
+
+/// What one step did: the figures a frame reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Rigid pair resolutions (or detections, in detect-only interactions).
+    pub contacts: u64,
+    /// Relaxation passes run, summed over interactions.
+    pub relaxation_iterations: u64,
+    /// Deepest rigid penetration detected.
+    pub deepest_penetration: f64,
+    /// Particles projected out of shapes.
+    pub particle_contacts: u64,
+    /// Kinetic energy of the rigid bodies after the step.
+    pub kinetic_energy: f64,
+    /// Bodies asleep after the step.
+    pub sleeping: u64,
+}
+
+/// Why a body or particle could not be added.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorldError {
+    #[error("body `{id}`: {source}")]
+    Body {
+        id: String,
+        #[source]
+        source: crate::dynamics::body::BodyError,
+    },
+    #[error("a body with id `{0}` already exists")]
+    DuplicateId(String),
+    #[error("particle: {0}")]
+    Particle(#[from] crate::particles::system::ParticleError),
+    #[error("unknown particle preset `{0}`")]
+    UnknownPreset(String),
+    #[error("interaction: {0}")]
+    Interaction(String),
+}
+
+/// A simulated world.
+#[derive(Clone, Debug)]
+pub struct World {
+    pub config: WorldConfig,
+    bodies: Vec<Body>,
+    groups: Vec<Group>,
+    interactions: Vec<Interaction>,
+    particles: Particles,
+    emitters: Vec<Emitter>,
+    presets: PresetLibrary,
+    rng: ChaCha8Rng,
+    frame: u64,
+    next_key: u32,
+    spawned: u64,
+    selected: Option<BodyKey>,
+    stats: StepStats,
+    statics_revision: u64,
+    // Scratch space of the broad phase and the impulse solver, kept between steps.
+    sweep: SweepBuffers,
+    /// Per group: the layout revision it was last looked at for, and its static grid if
+    /// it is all static and large.
+    static_grids: Vec<(u64, Option<StaticGrid>)>,
+    /// Changes whenever bodies are added or removed or a static body is moved.
+    layout_revision: u64,
+    pairs: Vec<(u32, u32)>,
+    sweep_out: Vec<(u32, u32)>,
+    /// Indices of the dynamic bodies, and of the bodies with a behaviour: what a step
+    /// walks, so static bodies cost nothing unless something touches them.
+    movers: Vec<u32>,
+    behaving: Vec<u32>,
+    /// Bodies flagged collided in the last step, to clear at the next.
+    flagged: Vec<u32>,
+    contact_cache: ContactCache,
+    /// The persistent pairs of the grid broad phase.
+    pair_set: PairSet,
+    /// Pairs handed to the impulse solver by the other broad phases.
+    solver_pairs: Vec<Pair>,
+    solver_buffers: SolverBuffers,
+    /// Every body's id, to refuse duplicates without a scan.
+    ids: std::collections::HashSet<String>,
+    /// Bodies asleep after the last step.
+    sleeping: u64,
+}
+
+impl World {
+    /// An empty world with the given parameters and the built-in presets.
+    pub fn new(config: WorldConfig) -> Self {
+        let rng = ChaCha8Rng::seed_from_u64(config.seed);
+        World {
+            config,
+            bodies: Vec::new(),
+            groups: Vec::new(),
+            interactions: Vec::new(),
+            particles: Particles::default(),
+            emitters: Vec::new(),
+            presets: PresetLibrary::built_in(),
+            rng,
+            frame: 0,
+            next_key: 0,
+            spawned: 0,
+            selected: None,
+            stats: StepStats::default(),
+            statics_revision: 0,
+            sweep: SweepBuffers::default(),
+            static_grids: Vec::new(),
+            layout_revision: 1,
+            pairs: Vec::new(),
+            sweep_out: Vec::new(),
+            movers: Vec::new(),
+            behaving: Vec::new(),
+            flagged: Vec::new(),
+            contact_cache: ContactCache::default(),
+            pair_set: PairSet::default(),
+            solver_pairs: Vec::new(),
+            solver_buffers: SolverBuffers::default(),
+            ids: Default::default(),
+            sleeping: 0,
+        }
+    }
+
+    // ---- reading -------------------------------------------------------------------
+
+    /// Steps taken so far.
+    pub fn frame(&self) -> u64 {
+        self.frame
+    }
+
+    /// Simulated seconds so far.
+    pub fn time(&self) -> f64 {
+        self.frame as f64 * self.config.dt
+    }
+
+    pub fn bodies(&self) -> &[Body] {
+        &self.bodies
+    }
+
+    pub fn particles(&self) -> &Particles {
+        &self.particles
+    }
+
+    pub fn emitters(&self) -> &[Emitter] {
+        &self.emitters
+    }
+
+    pub fn interactions(&self) -> &[Interaction] {
+        &self.interactions
+    }
+
+    pub fn presets(&self) -> &PresetLibrary {
+        &self.presets
+    }
+
+    pub fn presets_mut(&mut self) -> &mut PresetLibrary {
+        &mut self.presets
+    }
+
+    /// The figures of the last step.
+    pub fn stats(&self) -> StepStats {
+        self.stats
+    }
+
+    pub fn body(&self, id: &str) -> Option<&Body> {
+        self.bodies.iter().find(|b| b.id == id)
+    }
+
+    pub fn group_name(&self, group: GroupId) -> &str {
+        &self.groups[group as usize].name
+    }
+
+    /// The group's id, if any body or interaction has named it.
+    /// The group names by index.
+    pub fn group_names(&self) -> impl Iterator<Item = &str> {
+        self.groups.iter().map(|g| g.name.as_str())
+    }
+
+    pub fn group(&self, name: &str) -> Option<GroupId> {
+        self.groups
+            .iter()
+            .position(|g| g.name == name)
+            .map(|i| i as GroupId)
+    }
+
+    /// Changes whenever a static body is added, moved or removed: when to re-send them.
+    pub fn statics_revision(&self) -> u64 {
+        self.statics_revision
+    }
+
+    /// The selected body's id.
+    pub fn selected(&self) -> Option<&str> {
+        let key = self.selected?;
+        self.bodies
+            .iter()
+            .find(|b| b.key == key)
+            .map(|b| b.id.as_str())
+    }
+
+    /// Total kinetic energy of the rigid bodies.
+    pub fn kinetic_energy(&self) -> f64 {
+        self.movers
+            .iter()
+            .map(|&i| self.bodies[i as usize].kinetic_energy())
+            .sum()
+    }
+}

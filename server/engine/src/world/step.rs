@@ -1,0 +1,354 @@
+//! The step pipeline: behaviours, integration, the rigid solver over the declared
+//! interactions, particles and emitters, sleeping, in that order (see [`World::step`]).
+
+use crate::dynamics::body::GroupId;
+use crate::dynamics::broad_phase::BroadPhase;
+use crate::dynamics::ccd;
+use crate::dynamics::config::Solver;
+use crate::dynamics::impulse::{self, ImpulseParams};
+use crate::dynamics::integrate::{self, integrate_bodies};
+use crate::dynamics::relaxation::{self, RelaxationParams};
+use crate::dynamics::sleep;
+use crate::geometry::Shape;
+use crate::particles::system::{ParticleShape, ShapeGrid};
+
+use super::{Side, StepStats, World, PARTICLE_GRID_MIN_SHAPES};
+
+impl World {
+    /// Advances the world by one fixed step.
+    ///
+    /// With the chapter's relaxation and one sub-step this is the chapter's order: move
+    /// bodies, move particles, then every interaction in declaration order. With sub-steps
+    /// or the impulse solver, the rigid bodies take their sub-steps first (move and
+    /// resolve), then the particles move and meet the shapes where they ended.
+    pub fn step(&mut self) {
+        let mut stats = StepStats::default();
+        for &i in &self.flagged {
+            self.bodies[i as usize].collided = false;
+        }
+        self.flagged.clear();
+        if !self.config.sleeping {
+            self.wake_all();
+        }
+        if self.sleeping > 0 {
+            sleep::freeze(&mut self.bodies, &self.movers);
+        }
+        self.run_behaviors();
+        let dt = self.config.dt;
+        let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
+        if chapter_order {
+            integrate_bodies(&mut self.bodies, &self.movers, &self.config, dt);
+            self.sweep_fast_bodies(dt);
+            self.explode_dye_packs_on_hero();
+            self.move_particles();
+            self.run_interactions(&mut stats, true, true, dt);
+        } else {
+            let n = self.config.substeps.max(1);
+            match self.config.solver {
+                Solver::Relaxation => {
+                    let h = dt / n as f64;
+                    for _ in 0..n {
+                        integrate_bodies(&mut self.bodies, &self.movers, &self.config, h);
+                        self.sweep_fast_bodies(h);
+                        self.run_interactions(&mut stats, true, false, h);
+                    }
+                }
+                Solver::Impulses => self.solve_impulses(&mut stats, dt),
+            }
+            self.explode_dye_packs_on_hero();
+            self.move_particles();
+            self.run_interactions(&mut stats, false, true, dt);
+        }
+        if self.sleeping > 0 {
+            sleep::thaw(&mut self.bodies, &self.movers);
+        }
+        if self.config.sleeping {
+            self.update_sleep();
+        }
+        stats.sleeping = self.sleeping;
+        stats.kinetic_energy = self.kinetic_energy();
+        self.stats = stats;
+        self.frame += 1;
+    }
+
+    /// With `ccd`, stops fast bodies at the first shape of their interactions they would
+    /// have passed through this step.
+    pub(super) fn sweep_fast_bodies(&mut self, dt: f64) {
+        if !self.config.ccd {
+            return;
+        }
+        let (groups, interactions, bodies) = (&self.groups, &self.interactions, &mut self.bodies);
+        let group_of: Vec<GroupId> = self
+            .movers
+            .iter()
+            .map(|&i| bodies[i as usize].group)
+            .collect();
+        let movers = &self.movers;
+        let stopped = ccd::sweep_fast_bodies(bodies, movers, dt, |i| {
+            let g = group_of[movers.iter().position(|&m| m == i).expect("a mover")];
+            let mut out = Vec::new();
+            for inter in interactions.iter().filter(|it| it.resolve) {
+                match (inter.a, inter.b) {
+                    (Side::Group(a), Side::Group(b)) if a == g => {
+                        out.extend_from_slice(&groups[b as usize].members)
+                    }
+                    (Side::Group(a), Side::Group(b)) if b == g => {
+                        out.extend_from_slice(&groups[a as usize].members)
+                    }
+                    _ => {}
+                }
+            }
+            out
+        });
+        if stopped > 0 {
+            let bodies = &self.bodies;
+            self.flagged
+                .extend(self.movers.iter().filter(|&&i| bodies[i as usize].collided));
+        }
+    }
+
+    /// Joins touching bodies into islands and puts resting islands to sleep.
+    pub(super) fn update_sleep(&mut self) {
+        let dt = self.config.dt;
+        let mut pairs = Vec::new();
+        let mut some = Vec::new();
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
+            if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
+                self.candidates(a, b, dt, &mut some);
+                pairs.extend_from_slice(&some);
+            }
+        }
+        let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
+        self.sleeping = sleep::update(&mut self.bodies, &self.movers, &pairs, dt, speed, delay);
+    }
+
+    /// Wakes every sleeping body.
+    pub(super) fn wake_all(&mut self) {
+        if self.sleeping == 0 {
+            return;
+        }
+        for &i in &self.movers {
+            sleep::wake(&mut self.bodies[i as usize]);
+        }
+        self.sleeping = 0;
+    }
+
+    /// Moves every particle, removing the expired, then emits.
+    pub(super) fn move_particles(&mut self) {
+        if !self.particles.is_empty() {
+            self.particles.update(self.config.dt as f32);
+        }
+        self.run_emitters();
+    }
+
+    /// The declared interactions in order: the rigid ones by relaxation (if `rigid`), the
+    /// particle ones by projection (if `particles`).
+    pub(super) fn run_interactions(
+        &mut self,
+        stats: &mut StepStats,
+        rigid: bool,
+        particles: bool,
+        dt: f64,
+    ) {
+        let params = RelaxationParams {
+            iterations: self.config.relaxation_iterations,
+            correction_rate: self.config.correction_rate,
+        };
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
+            match (inter.a, inter.b) {
+                (Side::Group(a), Side::Group(b)) if rigid => {
+                    if self.groups[a as usize].members.is_empty()
+                        || self.groups[b as usize].members.is_empty()
+                    {
+                        continue;
+                    }
+                    let report = if !inter.resolve {
+                        let (ga, gb) = (
+                            &self.groups[a as usize].members,
+                            &self.groups[b as usize].members,
+                        );
+                        relaxation::detect_only(&mut self.bodies, ga, gb)
+                    } else {
+                        match self.config.broad_phase {
+                            BroadPhase::AllPairs => {
+                                let (ga, gb) = (
+                                    &self.groups[a as usize].members,
+                                    &self.groups[b as usize].members,
+                                );
+                                relaxation::relax(&mut self.bodies, ga, gb, params)
+                            }
+                            BroadPhase::Sweep | BroadPhase::Grid => {
+                                let mut pairs = std::mem::take(&mut self.pairs);
+                                self.candidates(a, b, dt, &mut pairs);
+                                let report =
+                                    relaxation::relax_pairs(&mut self.bodies, &pairs, params);
+                                self.pairs = pairs;
+                                report
+                            }
+                        }
+                    };
+                    stats.contacts += report.contacts;
+                    stats.relaxation_iterations += report.iterations as u64;
+                    stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+                }
+                (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g))
+                    if particles =>
+                {
+                    if self.particles.is_empty() || !inter.resolve {
+                        continue;
+                    }
+                    let members = &self.groups[g as usize].members;
+                    let shapes: Vec<ParticleShape> = members
+                        .iter()
+                        .map(|&i| {
+                            let body = &self.bodies[i as usize];
+                            let centre = body.pos.as_vec2();
+                            match body.shape {
+                                Shape::Rect { half } => ParticleShape::Rect {
+                                    centre,
+                                    half: half.as_vec2(),
+                                },
+                                Shape::Circle { radius } => ParticleShape::Circle {
+                                    centre,
+                                    radius: radius as f32,
+                                },
+                            }
+                        })
+                        .collect();
+                    // Many shapes: bin them so each particle meets only its neighbours
+                    // (same result as shape after shape, tested); a few: shape after shape.
+                    let grid = if shapes.len() >= PARTICLE_GRID_MIN_SHAPES {
+                        ShapeGrid::build(shapes.clone())
+                    } else {
+                        None
+                    };
+                    stats.particle_contacts += match grid {
+                        Some(grid) => self.particles.project_out_of_grid(&grid),
+                        None => shapes
+                            .iter()
+                            .map(|s| match *s {
+                                ParticleShape::Rect { centre, half } => {
+                                    self.particles.project_out_of_rect(centre, half)
+                                }
+                                ParticleShape::Circle { centre, radius } => {
+                                    self.particles.project_out_of_circle(centre, radius)
+                                }
+                            })
+                            .sum(),
+                    };
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// One frame of the impulse solver (all its sub-steps) over the contacts of every rigid
+    /// interaction.
+    pub(super) fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
+        let mut all = std::mem::take(&mut self.pairs);
+        let mut some = std::mem::take(&mut self.sweep_out);
+        all.clear();
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
+            let (Side::Group(a), Side::Group(b)) = (inter.a, inter.b) else {
+                continue;
+            };
+            let (ga, gb) = (
+                &self.groups[a as usize].members,
+                &self.groups[b as usize].members,
+            );
+            if ga.is_empty() || gb.is_empty() {
+                continue;
+            }
+            if !inter.resolve {
+                let report = relaxation::detect_only(&mut self.bodies, ga, gb);
+                stats.contacts += report.contacts;
+                continue;
+            }
+            match self.config.broad_phase {
+                BroadPhase::AllPairs => {
+                    for &i in ga {
+                        all.extend(gb.iter().filter(|&&j| j != i).map(|&j| (i, j)));
+                    }
+                }
+                BroadPhase::Sweep => {
+                    self.candidates(a, b, h, &mut some);
+                    all.extend_from_slice(&some);
+                }
+                BroadPhase::Grid => {}
+            }
+        }
+        self.sweep_out = some;
+        let config = &self.config;
+        let params = ImpulseParams {
+            iterations: config.impulse_iterations,
+            relax_iterations: config.relax_iterations,
+            warm_starting: config.warm_starting,
+            baumgarte: config.baumgarte,
+            slop: config.slop,
+            contact_hertz: config.contact_hertz,
+            contact_damping: config.contact_damping,
+            split_impulses: config.split_impulses,
+            dt: h,
+            substeps: config.substeps,
+        };
+        let grid = config.broad_phase == BroadPhase::Grid;
+        let mut pairs = if grid {
+            self.update_pair_set(h);
+            std::mem::take(&mut self.pair_set.pairs)
+        } else {
+            let mut pairs = std::mem::take(&mut self.solver_pairs);
+            self.contact_cache.pairs(&self.bodies, &mut all, &mut pairs);
+            pairs
+        };
+        let config = &self.config;
+        let report = impulse::solve_frame(
+            &mut self.bodies,
+            &mut pairs,
+            params,
+            &mut self.solver_buffers,
+            &self.movers,
+            |b| integrate::acceleration(b, config),
+            &mut self.flagged,
+        );
+        if grid {
+            self.pair_set.pairs = pairs;
+        } else {
+            self.contact_cache.store(&self.bodies, &pairs);
+            self.solver_pairs = pairs;
+        }
+        stats.contacts += report.contacts;
+        stats.relaxation_iterations +=
+            ((config.impulse_iterations + config.relax_iterations) * config.substeps) as u64;
+        stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+        self.pairs = all;
+    }
+
+    /// Runs `n` steps.
+    pub fn step_n(&mut self, n: u64) {
+        for _ in 0..n {
+            self.step();
+        }
+    }
+
+    pub(super) fn run_emitters(&mut self) {
+        if self.emitters.is_empty() {
+            return;
+        }
+        let gravity = self.config.particle_gravity.as_vec2();
+        for e in &mut self.emitters {
+            let n = e.take_batch(&mut self.rng);
+            let preset = self
+                .presets
+                .get(&e.preset)
+                .expect("emitter presets are checked when added");
+            for _ in 0..n {
+                let def = preset.spawn(e.pos, &mut self.rng);
+                self.particles.push(&def, gravity);
+            }
+        }
+        self.emitters.retain(|e| !e.expired());
+    }
+}

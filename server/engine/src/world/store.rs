@@ -1,0 +1,173 @@
+//! The body store: adding bodies (checked), particles, emitters and interactions;
+//! removing bodies; the indices a step walks (movers, behaving, flagged) kept in step.
+
+use glam::Vec2;
+
+use crate::behavior::Behavior;
+use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
+use crate::particles::{Emitter, ParticleDef};
+
+use super::{Group, Interaction, Side, World, WorldError, PARTICLES};
+
+impl World {
+    /// The group's id, creating the group if needed.
+    pub fn group_or_insert(&mut self, name: &str) -> GroupId {
+        if let Some(g) = self.group(name) {
+            return g;
+        }
+        self.groups.push(Group {
+            name: name.to_string(),
+            members: Vec::new(),
+        });
+        (self.groups.len() - 1) as GroupId
+    }
+
+    /// Adds a body. Its id must be unique; every number is checked.
+    pub fn add_body(&mut self, def: BodyDef) -> Result<BodyKey, WorldError> {
+        def.validate().map_err(|source| WorldError::Body {
+            id: def.id.clone(),
+            source,
+        })?;
+        if self.ids.contains(&def.id) {
+            return Err(WorldError::DuplicateId(def.id));
+        }
+        self.ids.insert(def.id.clone());
+        let group = self.group_or_insert(&def.group);
+        let key = BodyKey(self.next_key);
+        self.next_key += 1;
+        let index = self.bodies.len() as u32;
+        if def.mass == 0.0 {
+            self.statics_revision += 1;
+        }
+        self.layout_revision += 1;
+        self.bodies.push(Body {
+            pos: def.pos,
+            vel: def.vel,
+            shape: def.shape,
+            inv_mass: def.inv_mass(),
+            restitution: def.restitution,
+            friction: def.friction,
+            collided: false,
+            gravity: def.gravity,
+            group,
+            key,
+            behavior: def.behavior,
+            id: def.id,
+            rest_time: 0.0,
+            asleep: None,
+        });
+        self.groups[group as usize].members.push(index);
+        let body = &self.bodies[index as usize];
+        if !body.is_static() {
+            self.movers.push(index);
+        }
+        if body.behavior != Behavior::None {
+            self.behaving.push(index);
+        }
+        Ok(key)
+    }
+
+    /// Adds a particle.
+    pub fn add_particle(&mut self, def: &ParticleDef) -> Result<(), WorldError> {
+        def.validate()?;
+        self.particles
+            .push(def, self.config.particle_gravity.as_vec2());
+        Ok(())
+    }
+
+    /// Starts an emitter of `count` particles of `preset` at `pos`.
+    pub fn add_emitter(&mut self, preset: &str, count: u32, pos: Vec2) -> Result<(), WorldError> {
+        if self.presets.get(preset).is_none() {
+            return Err(WorldError::UnknownPreset(preset.to_string()));
+        }
+        if !pos.is_finite() {
+            return Err(WorldError::Interaction(format!(
+                "emitter position {pos} is not finite"
+            )));
+        }
+        self.emitters.push(Emitter {
+            pos,
+            remaining: count,
+            preset: preset.to_string(),
+        });
+        Ok(())
+    }
+
+    /// Declares an interaction between two groups, or a group and [`PARTICLES`].
+    pub fn add_interaction(&mut self, a: &str, b: &str, resolve: bool) -> Result<(), WorldError> {
+        let side = |w: &mut World, name: &str| {
+            if name == PARTICLES {
+                Side::Particles
+            } else {
+                Side::Group(w.group_or_insert(name))
+            }
+        };
+        let (sa, sb) = (side(self, a), side(self, b));
+        if sa == Side::Particles && sb == Side::Particles {
+            return Err(WorldError::Interaction(
+                "particles do not collide with each other; pair `particles` with a group of bodies"
+                    .into(),
+            ));
+        }
+        self.interactions.push(Interaction {
+            a: sa,
+            b: sb,
+            resolve,
+        });
+        // The grid broad phase keeps pairs of the groups that resolve: look again.
+        self.layout_revision += 1;
+        Ok(())
+    }
+
+    /// A fresh id `<prefix>-<n>` that no body uses.
+    pub(super) fn fresh_id(&mut self, prefix: &str) -> String {
+        loop {
+            self.spawned += 1;
+            let id = format!("{prefix}-{}", self.spawned);
+            if !self.ids.contains(&id) {
+                return id;
+            }
+        }
+    }
+
+    /// Removes the bodies for which `remove` is true, keeping the order of the rest (and
+    /// wakes the world: a removed body may have held others up).
+    pub(super) fn remove_bodies(&mut self, remove: impl Fn(&Body) -> bool) {
+        if self.bodies.iter().any(&remove) {
+            self.wake_all();
+        }
+        if self.bodies.iter().any(|b| b.is_static() && remove(b)) {
+            self.statics_revision += 1;
+        }
+        let before = self.bodies.len();
+        for b in self.bodies.iter().filter(|b| remove(b)) {
+            self.ids.remove(&b.id);
+        }
+        self.bodies.retain(|b| !remove(b));
+        if self.bodies.len() != before {
+            self.layout_revision += 1;
+            self.rebuild_groups();
+        }
+    }
+
+    pub(super) fn rebuild_groups(&mut self) {
+        for g in &mut self.groups {
+            g.members.clear();
+        }
+        self.movers.clear();
+        self.behaving.clear();
+        self.flagged.clear();
+        for (i, b) in self.bodies.iter().enumerate() {
+            self.groups[b.group as usize].members.push(i as u32);
+            if !b.is_static() {
+                self.movers.push(i as u32);
+            }
+            if b.behavior != Behavior::None {
+                self.behaving.push(i as u32);
+            }
+            if b.collided {
+                self.flagged.push(i as u32);
+            }
+        }
+    }
+}
