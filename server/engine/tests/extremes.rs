@@ -367,3 +367,50 @@ fn the_hundred_level_pyramid_holds_at_its_shipped_setting() {
         r.settled
     );
 }
+
+/// Soft contacts (springs of `contact_hertz`, as Box2D v3's soft step): boxes that start
+/// overlapping by a quarter come apart without launching the top one (rigid contacts at
+/// the same sub-steps throw it 5 box sizes up), and a tall stack rests with the sag of a
+/// spring of that stiffness.
+#[test]
+fn soft_contacts_separate_without_launching_and_hold_a_stack() {
+    /// The top box's highest point over the run, and the boxes' heights at the end.
+    fn overlap(overrides: &[&str]) -> (f64, Vec<f64>, f64) {
+        let mut w = load("overlap-quarter.toml", overrides);
+        let mut top: f64 = 0.0;
+        for _ in 0..600 {
+            w.step();
+            top = top.max(w.body("stack/4").unwrap().pos.y);
+        }
+        let ys = (0..5)
+            .map(|k| w.body(&format!("stack/{k}")).unwrap().pos.y)
+            .collect();
+        (top, ys, w.kinetic_energy())
+    }
+    let soft = ["solver=\"impulses\"", "substeps=2", "contact_hertz=10"];
+    let (top, ys, energy) = overlap(&soft);
+    // At rest the top box's centre is at 4.5: it never overshoots.
+    assert!(top < 4.55, "top box rose to {top}");
+    // Apart, but for the springs' sag under the weight above them (2% at 10 Hz).
+    for pair in ys.windows(2) {
+        assert!(pair[1] - pair[0] > 0.97, "still overlapping: {ys:?}");
+    }
+    assert!(energy < 1e-3, "kinetic energy {energy}");
+    let (rigid_top, _, _) = overlap(STABLE);
+    assert!(
+        rigid_top > 6.0,
+        "rigid contacts launch the top box: {rigid_top}"
+    );
+
+    let (_, r) = run(
+        load(
+            "stack-20.toml",
+            &["solver=\"impulses\"", "substeps=2", "contact_hertz=30"],
+        ),
+        600,
+    );
+    assert!(!r.nan);
+    assert!(r.drift < 0.1, "worst drift {}", r.drift);
+    assert!(r.deepest < 0.02, "penetration {}", r.deepest);
+    assert!(r.energy < 1e-6, "kinetic energy {}", r.energy);
+}

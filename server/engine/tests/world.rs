@@ -540,18 +540,16 @@ fn broad_phase_actions() -> Vec<(u64, Action)> {
 fn the_sweep_broad_phase_gives_the_chapters_all_pairs_results_bit_for_bit() {
     let actions = broad_phase_actions();
     for scene_name in ["emitters.toml", "bounds.toml", "pyramid-10.toml"] {
-        let mut all_pairs = asset(scene_name);
-        all_pairs.apply(&set("broad_phase=all_pairs")).unwrap();
-        let sweep = asset(scene_name);
-        assert_eq!(
-            sweep.config.broad_phase,
-            ricochet_engine::dynamics::BroadPhase::Sweep
-        );
-        assert_eq!(
-            run_dump(all_pairs, &actions, 240),
-            run_dump(sweep, &actions, 240),
-            "{scene_name}"
-        );
+        for solver in ["relaxation", "impulses"] {
+            let with = |broad_phase: &str| {
+                let mut w = asset(scene_name);
+                w.apply(&set(&format!("solver={solver}"))).unwrap();
+                w.apply(&set(&format!("broad_phase={broad_phase}")))
+                    .unwrap();
+                run_dump(w, &actions, 240)
+            };
+            assert_eq!(with("all_pairs"), with("sweep"), "{scene_name}, {solver}");
+        }
     }
 }
 
@@ -577,4 +575,26 @@ fn the_grid_broad_phase_gives_the_sweeps_results_bit_for_bit() {
             assert_eq!(with("sweep"), with("grid"), "{scene_name}, {solver}");
         }
     }
+}
+
+#[test]
+fn solver_passes_are_counted_as_they_run() {
+    // The impulse solver: 4 biased + 1 relax passes in each of 3 sub-steps.
+    let mut w = asset("stack-20.toml");
+    for a in [
+        "solver=impulses",
+        "impulse_iterations=4",
+        "relax_iterations=1",
+        "substeps=3",
+    ] {
+        w.apply(&set(a)).unwrap();
+    }
+    w.step();
+    assert_eq!(w.stats().relaxation_iterations, 15);
+    // The chapter's relaxation stops after a pass that finds nothing to resolve: a box
+    // in free fall costs one pass per interaction, not the 15 configured.
+    let mut w = scene(&PLATFORM_AND_BOX.replace("pos = [0, 3]", "pos = [0, 30]"));
+    assert_eq!(w.config.relaxation_iterations, 15);
+    w.step();
+    assert_eq!(w.stats().relaxation_iterations, 1, "{:?}", w.stats());
 }

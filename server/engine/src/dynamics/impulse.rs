@@ -16,7 +16,6 @@
 //!
 //! Shapes do not rotate, so one contact per pair carries all of it.
 
-
 use glam::DVec2;
 
 use super::body::{Body, BodyKey};
@@ -192,6 +191,9 @@ impl ContactCache {
 pub struct ImpulseReport {
     pub contacts: u64,
     pub deepest: f64,
+    /// Velocity passes run over the contacts (biased and relax, every sub-step): counted
+    /// as they run, not derived from the settings.
+    pub passes: u64,
 }
 
 /// Reusable buffers of the solver.
@@ -334,6 +336,7 @@ pub fn solve_frame(
         for k in 0..params.iterations {
             // Split impulses start from nothing each sub-step.
             let fresh = params.split_impulses && k == 0;
+            report.passes += 1;
             solve_pass(
                 sb,
                 contacts,
@@ -350,6 +353,7 @@ pub fn solve_frame(
             body.pseudo = DVec2::ZERO;
         }
         for _ in 0..params.relax_iterations {
+            report.passes += 1;
             solve_pass(sb, contacts, Bias::NONE, Bias::NONE, inv_h, false, false);
         }
         // Restitution, once, for contacts that pushed: after the move, the normal velocity

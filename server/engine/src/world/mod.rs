@@ -57,7 +57,9 @@ struct Group {
 pub struct StepStats {
     /// Rigid pair resolutions (or detections, in detect-only interactions).
     pub contacts: u64,
-    /// Relaxation passes run, summed over interactions.
+    /// Solver passes run, counted as they run: the relaxation solver's passes summed over
+    /// interactions (it stops early once a pass finds no overlap), or the impulse
+    /// solver's velocity passes over all sub-steps.
     pub relaxation_iterations: u64,
     /// Deepest rigid penetration detected.
     pub deepest_penetration: f64,

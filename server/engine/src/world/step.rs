@@ -320,8 +320,7 @@ impl World {
             self.solver_pairs = pairs;
         }
         stats.contacts += report.contacts;
-        stats.relaxation_iterations +=
-            ((config.impulse_iterations + config.relax_iterations) * config.substeps) as u64;
+        stats.relaxation_iterations += report.passes;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
         self.pairs = all;
     }
