@@ -251,4 +251,19 @@ mod tests {
         let huge = vec![b' '; MAX_COMMAND_BYTES + 1];
         assert!(Command::parse(&huge).unwrap_err().contains("larger"));
     }
+
+    #[test]
+    fn the_network_page_lists_every_settable_name() {
+        let page = include_str!("../../docs/network.md");
+        let row = page
+            .lines()
+            .find(|l| l.starts_with("| `set` |"))
+            .expect("docs/network.md has a row for `set`");
+        for name in ricochet_engine::dynamics::Setting::NAMES {
+            assert!(
+                row.contains(name),
+                "docs/network.md's `set` row misses {name}"
+            );
+        }
+    }
 }

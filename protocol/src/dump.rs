@@ -51,6 +51,27 @@ pub struct ParticleRecord {
     pub color: [f32; 4],
 }
 
+/// What one step did, as `simulate --stats` writes it: one JSON object per line, line k
+/// for step k (1-based). Every figure is counted by the engine as the step runs; wall
+/// times are left out, so the file is as deterministic as the dump.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StatsRecord {
+    pub frame: u64,
+    /// Rigid pair resolutions (or detections, in detect-only interactions).
+    pub contacts: u64,
+    /// Solver passes run (relaxation passes over interactions, or impulse velocity
+    /// passes over sub-steps).
+    pub passes: u64,
+    /// Deepest rigid penetration detected during the step.
+    pub deepest_penetration: f64,
+    /// Kinetic energy of the rigid bodies after the step.
+    pub kinetic_energy: f64,
+    /// Particles projected out of shapes.
+    pub particle_contacts: u64,
+    /// Bodies asleep after the step.
+    pub sleeping: u64,
+}
+
 impl FrameRecord {
     /// The body with this id.
     pub fn body(&self, id: &str) -> Option<&BodyRecord> {

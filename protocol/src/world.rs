@@ -8,7 +8,7 @@ use ricochet_engine::dynamics::Body;
 use ricochet_engine::geometry::Shape;
 use ricochet_engine::world::World;
 
-use crate::dump::{BodyRecord, FrameRecord, ParticleRecord};
+use crate::dump::{BodyRecord, FrameRecord, ParticleRecord, StatsRecord};
 use crate::frame::{encode_statics, BodyIn, EmitterIn, FrameEncoder, FrameStats, ParticlesIn};
 
 fn body_in<'a>(world: &'a World, b: &'a Body) -> BodyIn<'a> {
@@ -129,4 +129,18 @@ pub fn frame_record(world: &World) -> FrameRecord {
 pub fn write_frame(out: &mut impl Write, world: &World) -> std::io::Result<()> {
     serde_json::to_writer(&mut *out, &frame_record(world))?;
     out.write_all(b"\n")
+}
+
+/// The figures of the world's last step as a stats record.
+pub fn stats_record(world: &World) -> StatsRecord {
+    let s = world.stats();
+    StatsRecord {
+        frame: world.frame(),
+        contacts: s.contacts,
+        passes: s.relaxation_iterations,
+        deepest_penetration: s.deepest_penetration,
+        kinetic_energy: s.kinetic_energy,
+        particle_contacts: s.particle_contacts,
+        sleeping: s.sleeping,
+    }
 }

@@ -7,6 +7,7 @@
 //! as an overrun; after more than [`MAX_CATCH_UP`] late steps the clock is re-anchored
 //! (the lost steps are counted, never silently dropped).
 
+use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -45,6 +46,9 @@ pub struct HostOptions {
     pub keyframe_interval: u64,
     /// Stop after this many frames (for scripted runs); run until killed otherwise.
     pub max_frames: Option<u64>,
+    /// Append every published frame to this file as a dump line (full precision, as
+    /// `simulate --dump` writes them), flushed each frame.
+    pub dump: Option<PathBuf>,
 }
 
 /// The world, its scene and what the wire remembers of it.
@@ -233,6 +237,14 @@ pub fn run(opts: HostOptions) -> Result<()> {
     )?;
     host.paused = opts.paused;
 
+    let mut dump = match &opts.dump {
+        Some(path) => Some(std::io::BufWriter::new(
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create dump {}", path.display()))?,
+        )),
+        None => None,
+    };
+
     let session = opts.network.open()?;
     let z = |e: zenoh::Error| anyhow!("zenoh: {e}");
     let frames = session
@@ -296,6 +308,12 @@ pub fn run(opts: HostOptions) -> Result<()> {
         };
         if let Err(e) = sent {
             tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
+        }
+        if let Some(out) = dump.as_mut() {
+            let written = wire::write_frame(out, &h.world).and_then(|()| out.flush());
+            if let Err(e) = written {
+                tracing::warn!("writing frame {} to the dump failed: {e}", h.world.frame());
+            }
         }
     };
     // Frame 0: the state before the first step.

@@ -64,28 +64,35 @@ enum Command {
         /// Stop after this many frames instead of running until killed.
         #[arg(long)]
         max_frames: Option<u64>,
+        /// Append every frame the server publishes to this file as JSON Lines, in the
+        /// form of `simulate --dump` (full precision), flushed each frame.
+        #[arg(long, value_name = "FILE")]
+        dump: Option<PathBuf>,
     },
-    /// Measure the engine's speed (figures, not pass/fail).
+    /// Measure the engine's speed on shipped scenes (figures, not pass/fail).
     ///
-    /// The large pyramid under each solver setting, particles against shapes, free
-    /// particles, and a hero among few or many static platforms. Prints a table (and CSV
-    /// with --csv). Use a release build.
+    /// The 100-level pyramid under each solver setting (with its worst drift over the
+    /// run), particles among shapes, free particles, and a hero among few or many static
+    /// platforms: the scenes of assets/scenes/ and assets/scenes/bench/. Prints a table;
+    /// with --out writes DIR/bench.csv and the table of DIR/README.md. Use a release
+    /// build.
     Bench {
-        /// Levels of the pyramid (100: the brief's 5050 boxes).
-        #[arg(long, default_value_t = 100)]
-        levels: u32,
-        /// Steps of the pyramid (the brief: 500).
+        /// Steps of the pyramid (the brief: 500). The chapter's relaxation runs at most 20:
+        /// it is quadratic in the pile.
         #[arg(long, default_value_t = 500)]
         steps: u64,
-        /// Only the cases whose name contains this.
+        /// Only the cases whose scene contains this.
         #[arg(long)]
         only: Option<String>,
-        /// Also write the figures as CSV.
-        #[arg(long)]
-        csv: Option<PathBuf>,
-        /// Measure the pyramid under this setting instead of the listed ones: world
-        /// parameters as NAME=VALUE over the defaults (repeatable), e.g.
-        /// `--set solver=impulses --set broad_phase=grid --set substeps=2`.
+        /// Write DIR/bench.csv and the generated table of DIR/README.md (docs/bench).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Where the scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Measure the pyramid under this setting instead of the listed ones: overrides of
+        /// the shipped scene's `[world]` as NAME=VALUE (repeatable), e.g.
+        /// `--set impulse_iterations=6 --set substeps=1`.
         #[arg(long = "set", value_name = "NAME=VALUE")]
         set: Vec<String>,
     },
@@ -133,6 +140,11 @@ enum Command {
         /// applied after N steps, before step N + 1, in file order.
         #[arg(long)]
         inputs: Option<PathBuf>,
+        /// Write every step's figures as JSON Lines to this file (line k: step k): contacts,
+        /// solver passes, deepest penetration, kinetic energy, particle contacts, sleeping
+        /// bodies.
+        #[arg(long, value_name = "FILE")]
+        stats: Option<PathBuf>,
         /// Encode every frame as the server would send it and report the bytes per frame,
         /// per dynamic body and per particle.
         #[arg(long)]
@@ -154,6 +166,7 @@ fn main() -> Result<()> {
             set,
             keyframe_interval,
             max_frames,
+            dump,
         } => host::run(HostOptions {
             scene,
             world,
@@ -162,14 +175,15 @@ fn main() -> Result<()> {
             overrides: set,
             keyframe_interval,
             max_frames,
+            dump,
         }),
         Command::Bench {
-            levels,
             steps,
             only,
-            csv,
+            out,
+            scenes,
             set,
-        } => run_bench(levels, steps, only.as_deref(), csv.as_deref(), &set),
+        } => run_bench(steps, only.as_deref(), out.as_deref(), &scenes, set),
         Command::Tradeoff { out } => {
             std::fs::create_dir_all(&out)
                 .with_context(|| format!("cannot create {}", out.display()))?;
@@ -203,6 +217,7 @@ fn main() -> Result<()> {
             set,
             dump,
             inputs,
+            stats,
             wire_stats,
             keyframe_interval,
         } => simulate(
@@ -211,6 +226,7 @@ fn main() -> Result<()> {
             seed,
             set,
             dump.as_deref(),
+            stats.as_deref(),
             inputs.as_deref(),
             wire_stats.then_some(keyframe_interval),
         ),
@@ -218,65 +234,61 @@ fn main() -> Result<()> {
 }
 
 fn run_bench(
-    levels: u32,
     steps: u64,
     only: Option<&str>,
-    csv: Option<&Path>,
-    set: &[String],
+    out: Option<&Path>,
+    scenes: &Path,
+    set: Vec<String>,
 ) -> Result<()> {
-    use bench::*;
-    let settings = if set.is_empty() {
-        pyramid_settings()
-    } else {
-        let mut config = ricochet_engine::dynamics::WorldConfig::default();
-        for s in set {
-            config.set_from_str(s)?;
-        }
-        vec![(set.join(" "), config)]
-    };
-    let wanted = |name: &str| only.is_none_or(|o| name.contains(o));
-    let mut figures = Vec::new();
-    let mut report = |f: Figure| {
-        println!(
-            "| {} | {} | {} | {:.4} | {:.4} {} |",
-            f.case, f.setting, f.steps, f.ms_per_step, f.extra, f.extra_name
-        );
-        figures.push(f);
-    };
-    println!("| case | setting | steps | median ms/step | figure |\n|---|---|---|---|---|");
-    if wanted("pyramid") {
-        for (name, config) in settings {
-            // The chapter's relaxation is too slow for 500 steps of the large pyramid.
-            let n = if config.solver == ricochet_engine::dynamics::Solver::Relaxation && levels > 20
-            {
-                steps.min(20)
+    let pyramid = (!set.is_empty()).then_some(set);
+    let cases: Vec<bench::Case> = bench::cases(pyramid, steps)
+        .into_iter()
+        .filter(|c| only.is_none_or(|o| c.scene.contains(o)))
+        .collect();
+    let total: u64 = cases.iter().map(|c| c.settings.len() as u64).sum();
+    let progress = indicatif::ProgressBar::new(total).with_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .expect("a valid template"),
+    );
+    let mut rows = Vec::new();
+    for case in &cases {
+        for (label, overrides) in &case.settings {
+            progress.set_message(format!("{} / {label}", case.scene));
+            // The chapter's relaxation is quadratic in the pile: a few steps show its cost.
+            let relaxation = overrides.iter().any(|o| o == "solver=relaxation");
+            let n = if relaxation {
+                case.steps.min(20)
             } else {
-                steps
+                case.steps
             };
-            report(pyramid_case(levels, &name, config, n));
+            rows.push(bench::measure(scenes, case, label, overrides, n)?);
+            progress.inc(1);
         }
     }
-    if wanted("particles") {
-        report(particle_case(100_000, 100, 50));
-        report(particle_case(1_000_000, 0, 20));
-    }
-    if wanted("platforms") {
-        report(statics_case(10, 600));
-        report(statics_case(10_000, 600));
-    }
-    if let Some(path) = csv {
-        let mut out = String::from("case,setting,steps,ms_per_step,figure,figure_name\n");
-        for f in &figures {
-            out += &format!(
-                "\"{}\",\"{}\",{},{},{},\"{}\"\n",
-                f.case, f.setting, f.steps, f.ms_per_step, f.extra, f.extra_name
-            );
-        }
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create {}", dir.display()))?;
-        }
-        std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))?;
+    progress.finish_and_clear();
+    let table = bench::to_markdown(&rows);
+    println!("{table}");
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        std::fs::write(dir.join("bench.csv"), bench::to_csv(&rows)?)?;
+        let readme = dir.join("README.md");
+        let command = std::iter::once("ricochet-server".to_string())
+            .chain(std::env::args().skip(1))
+            .collect::<Vec<_>>()
+            .join(" ");
+        bench::splice(
+            &readme,
+            "bench",
+            &format!(
+                "Measured by `{command}` on {}.\n\n{table}",
+                bench::machine()
+            ),
+        )?;
+        eprintln!(
+            "wrote {} and the table of {}",
+            dir.join("bench.csv").display(),
+            readme.display()
+        );
     }
     Ok(())
 }
@@ -293,6 +305,7 @@ fn simulate(
     seed: Option<u64>,
     mut overrides: Vec<String>,
     dump_path: Option<&Path>,
+    stats_path: Option<&Path>,
     inputs: Option<&Path>,
     wire_stats: Option<u64>,
 ) -> Result<()> {
@@ -317,6 +330,14 @@ fn simulate(
     if let Some(out) = out.as_mut() {
         write_frame(out, &world)?;
     }
+    let mut stats_out = match stats_path {
+        None => None,
+        Some(p) => {
+            Some(BufWriter::new(File::create(p).with_context(|| {
+                format!("cannot create stats {}", p.display())
+            })?))
+        }
+    };
 
     let progress = indicatif::ProgressBar::new(steps);
     progress.set_style(
@@ -347,6 +368,10 @@ fn simulate(
         if let Some(out) = out.as_mut() {
             write_frame(out, &world)?;
         }
+        if let Some(out) = stats_out.as_mut() {
+            serde_json::to_writer(&mut *out, &wire::stats_record(&world))?;
+            out.write_all(b"\n")?;
+        }
         if let Some(w) = wire.as_mut() {
             w.frame(&world);
         }
@@ -354,6 +379,9 @@ fn simulate(
     }
     progress.finish_and_clear();
     if let Some(mut out) = out {
+        out.flush()?;
+    }
+    if let Some(mut out) = stats_out {
         out.flush()?;
     }
     let stats = world.stats();

@@ -1,274 +1,368 @@
-//! Benchmarks of the engine: figures and ratios, not pass/fail (`ricochet-server bench`).
+//! Benchmarks of the engine on shipped scenes: figures and ratios, not pass/fail
+//! (`ricochet-server bench`).
 //!
-//! Each case builds its world in code, steps it, and reports the median wall time per
-//! step with an accuracy figure where one applies. Run them on a quiet machine, in a
-//! release build; the numbers are this machine's.
+//! Every case loads a scene users can run themselves (`assets/scenes/`), under named
+//! settings written as the `--set NAME=VALUE` overrides they are, steps it, and reports
+//! the median wall time per step, its spread, and an accuracy or size figure where one
+//! applies (the worst drift over the whole run, not at a chosen step). Run them on a
+//! quiet machine, in a release build; the numbers are this machine's.
 
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use glam::{DVec2, Vec2};
+use anyhow::{Context, Result};
+use glam::DVec2;
+use serde::Serialize;
 
-use ricochet_engine::dynamics::config::{Solver, WorldConfig};
-use ricochet_engine::dynamics::BodyDef;
-use ricochet_engine::dynamics::BroadPhase;
-use ricochet_engine::geometry::Shape;
-use ricochet_engine::particles::ParticleDef;
+use ricochet_engine::scene;
 use ricochet_engine::world::World;
 
-/// One measured case.
+/// What a case reports besides time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Figure {
+    /// Worst displacement of any dynamic body from where the scene put it, over every
+    /// step, in units of the smallest dynamic body's size; and at the last step.
+    Drift,
+    /// Wall time per particle per step, in nanoseconds.
+    NsPerParticle,
+    /// Time only.
+    None,
+}
+
+/// One benchmark: a shipped scene under one or more settings.
 #[derive(Clone, Debug)]
-pub struct Figure {
-    pub case: String,
+pub struct Case {
+    /// The scene, relative to the scenes directory.
+    pub scene: &'static str,
+    /// Steps run before timing starts (emitters releasing, for instance).
+    pub warmup: u64,
+    pub steps: u64,
+    /// (label, overrides of the scene's `[world]` as `NAME=VALUE`); no overrides is the
+    /// scene's own setting.
+    pub settings: Vec<(String, Vec<String>)>,
+    pub figure: Figure,
+}
+
+/// One measured row, as the CSV holds it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub scene: String,
     pub setting: String,
+    /// The overrides of the scene's setting, space-separated (empty: as shipped).
+    pub overrides: String,
+    pub bodies: usize,
+    pub particles: usize,
     pub steps: u64,
     /// Median wall time of one step, in milliseconds.
-    pub ms_per_step: f64,
-    /// The case's own accuracy or size figure, named in `extra_name`.
-    pub extra: f64,
-    pub extra_name: &'static str,
+    pub ms_median: f64,
+    /// The 10th and 90th percentiles of the step's wall time, in milliseconds.
+    pub ms_p10: f64,
+    pub ms_p90: f64,
+    /// Worst drift over the run, in body sizes (Figure::Drift only).
+    pub worst_drift: Option<f64>,
+    /// Drift at the last step, in body sizes (Figure::Drift only).
+    pub final_drift: Option<f64>,
+    /// Nanoseconds per particle per step (Figure::NsPerParticle only).
+    pub ns_per_particle: Option<f64>,
+    /// A body or particle went NaN or infinite.
+    pub nan: bool,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+fn set(overrides: &[&str]) -> Vec<String> {
+    overrides.iter().map(|s| s.to_string()).collect()
 }
 
-fn timed(world: &mut World, steps: u64) -> Vec<f64> {
-    (0..steps)
-        .map(|_| {
-            let t = Instant::now();
-            world.step();
-            t.elapsed().as_secs_f64() * 1e3
-        })
-        .collect()
-}
-
-/// The brief's "large pyramid": `levels` levels of 1 x 1 boxes on static ground, gravity
-/// -10, rotation locked (no rotation exists here), 1/60 s steps.
-pub fn pyramid(levels: u32, config: WorldConfig) -> World {
-    let mut w = World::new(WorldConfig {
-        gravity: DVec2::new(0.0, -10.0),
-        mass_scaled_acceleration: false,
-        ..config
-    });
-    w.add_body(BodyDef {
-        id: "ground".into(),
-        group: "ground".into(),
-        shape: Shape::rect(levels as f64 * 4.0, 2.0),
-        pos: DVec2::new(0.0, -1.0),
-        mass: 0.0,
-        ..BodyDef::default()
-    })
-    .expect("valid ground");
-    let mut k = 0;
-    for level in 0..levels {
-        let n = levels - level;
-        for i in 0..n {
-            let x = i as f64 - (n - 1) as f64 * 0.5;
-            w.add_body(BodyDef {
-                id: format!("pyramid/{k}"),
-                group: "boxes".into(),
-                shape: Shape::rect(1.0, 1.0),
-                pos: DVec2::new(x, 0.5 + level as f64),
-                restitution: 0.0,
-                friction: 0.6,
-                ..BodyDef::default()
-            })
-            .expect("valid box");
-            k += 1;
-        }
-    }
-    w.add_interaction("boxes", "ground", true)
-        .expect("groups exist");
-    w.add_interaction("boxes", "boxes", true)
-        .expect("groups exist");
-    w
-}
-
-/// Worst distance of a box from where it started, in box sizes.
-fn worst_drift(start: &[DVec2], world: &World) -> f64 {
-    world
-        .bodies()
-        .iter()
-        .zip(start)
-        .map(|(b, p)| (b.pos - *p).length())
-        .fold(0.0, f64::max)
-}
-
-/// The large pyramid under one setting: median ms per step over `steps`, worst drift at
-/// the end.
-pub fn pyramid_case(levels: u32, setting: &str, config: WorldConfig, steps: u64) -> Figure {
-    let mut w = pyramid(levels, config);
-    let start: Vec<DVec2> = w.bodies().iter().map(|b| b.pos).collect();
-    let times = timed(&mut w, steps);
-    let drift = worst_drift(&start, &w);
-    let nan = w.bodies().iter().any(|b| !b.pos.is_finite());
-    Figure {
-        case: format!("pyramid-{levels} ({} boxes)", levels * (levels + 1) / 2),
-        setting: setting.to_string(),
-        steps,
-        ms_per_step: median(times),
-        extra: if nan { f64::NAN } else { drift },
-        extra_name: "worst drift (box sizes)",
-    }
-}
-
-/// `base` with the impulse solver, split impulses (baumgarte 0.5, slop 1e-4) and the grid
-/// broad phase: the large pyramid's setting (`docs/bench/README.md`).
-pub fn split_setting(base: &WorldConfig, iterations: u32, substeps: u32) -> WorldConfig {
-    WorldConfig {
-        solver: Solver::Impulses,
-        impulse_iterations: iterations,
-        substeps,
-        split_impulses: true,
-        baumgarte: 0.5,
-        slop: 0.0001,
-        broad_phase: BroadPhase::Grid,
-        ..base.clone()
-    }
-}
-
-/// The settings the pyramid is measured under: the chapter's relaxation, the impulse
-/// solver with the sweep broad phase (before the grid), then with the grid, split
-/// impulses and soft contacts.
-pub fn pyramid_settings() -> Vec<(String, WorldConfig)> {
-    let base = WorldConfig::default();
-    let impulses = |iterations: u32, substeps: u32| WorldConfig {
-        solver: Solver::Impulses,
-        impulse_iterations: iterations,
-        substeps,
-        ..base.clone()
+/// The rigid settings of the pyramid beyond its shipped one: the chapter's relaxation,
+/// the impulse solver without split impulses (sweep, then grid), split impulses at other
+/// iteration counts, and soft contacts.
+fn pyramid_settings() -> Vec<(String, Vec<String>)> {
+    // The shipped scene: impulses, 4 iterations, 2 sub-steps, split impulses (baumgarte
+    // 0.5, slop 1e-4), grid. Without split impulses the bias and slop go back to their
+    // defaults.
+    let plain = ["split_impulses=false", "baumgarte=0.2", "slop=0.001"];
+    let with = |extra: &[&str]| {
+        let mut v = set(&plain);
+        v.extend(set(extra));
+        v
     };
-    let grid = |iterations: u32, substeps: u32| WorldConfig {
-        broad_phase: BroadPhase::Grid,
-        ..impulses(iterations, substeps)
-    };
-    let split = |iterations: u32, substeps: u32| split_setting(&base, iterations, substeps);
     vec![
         (
+            "shipped: impulses 4 it, 2 sub-steps, split, grid".into(),
+            Vec::new(),
+        ),
+        (
             "relaxation 15 (chapter), sweep".into(),
-            WorldConfig {
-                solver: Solver::Relaxation,
-                ..base.clone()
-            },
-        ),
-        ("impulses 4 it, 2 sub-steps, sweep".into(), impulses(4, 2)),
-        ("impulses 4 it, 2 sub-steps, grid".into(), grid(4, 2)),
-        ("impulses 8 it, 1 sub-step, grid".into(), grid(8, 1)),
-        (
-            "impulses 6 it, 1 sub-step, split (baumgarte 0.5, slop 1e-4), grid".into(),
-            split(6, 1),
+            set(&["solver=relaxation", "broad_phase=sweep"]),
         ),
         (
-            "impulses 4 it, 2 sub-steps, split (baumgarte 0.5, slop 1e-4), grid".into(),
-            split(4, 2),
+            "impulses 4 it, 2 sub-steps, sweep".into(),
+            with(&["broad_phase=sweep"]),
+        ),
+        ("impulses 4 it, 2 sub-steps, grid".into(), with(&[])),
+        (
+            "impulses 8 it, 1 sub-step, grid".into(),
+            with(&["impulse_iterations=8", "substeps=1"]),
         ),
         (
-            "impulses 8 it, 2 sub-steps, split (baumgarte 0.5, slop 1e-4), grid".into(),
-            split(8, 2),
+            "impulses 6 it, 1 sub-step, split, grid".into(),
+            set(&["impulse_iterations=6", "substeps=1"]),
+        ),
+        (
+            "impulses 8 it, 2 sub-steps, split, grid".into(),
+            set(&["impulse_iterations=8"]),
         ),
         (
             "soft (30 Hz) 1 it + 1 relax, 4 sub-steps, grid".into(),
-            WorldConfig {
-                relax_iterations: 1,
-                contact_hertz: 30.0,
-                ..grid(1, 4)
-            },
+            with(&[
+                "contact_hertz=30",
+                "impulse_iterations=1",
+                "relax_iterations=1",
+                "substeps=4",
+            ]),
         ),
     ]
 }
 
-/// `count` particles of zero gravity scattered over the arena, none expiring, moving.
-fn particle_world(count: usize, shapes: usize) -> World {
-    let mut w = World::new(WorldConfig {
-        particle_gravity: DVec2::ZERO,
-        ..WorldConfig::default()
-    });
-    for k in 0..shapes {
-        let (x, y) = (10.0 + (k % 10) as f64 * 19.0, 8.0 + (k / 10) as f64 * 10.0);
-        w.add_body(BodyDef {
-            id: format!("shape/{k}"),
-            group: "shapes".into(),
-            shape: if k % 2 == 0 {
-                Shape::rect(6.0, 3.0)
-            } else {
-                Shape::circle(2.5)
+/// Every case, in the order the report lists them. `pyramid` replaces the pyramid's
+/// settings (`--set`), `steps` its step count.
+pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
+    let shipped = || vec![("shipped".to_string(), Vec::new())];
+    vec![
+        Case {
+            scene: "pyramid-100.toml",
+            warmup: 0,
+            steps,
+            settings: match pyramid {
+                Some(overrides) => vec![(overrides.join(" "), overrides)],
+                None => pyramid_settings(),
             },
-            pos: DVec2::new(x, y),
-            mass: 0.0,
-            ..BodyDef::default()
-        })
-        .expect("valid shape");
-    }
-    if shapes > 0 {
-        w.add_interaction("particles", "shapes", true)
-            .expect("groups exist");
-    }
-    // A deterministic scatter (no generator needed): a low-discrepancy sequence.
-    for i in 0..count {
-        let fx = (i as f64 * 0.618_033_988_75).fract();
-        let fy = (i as f64 * 0.754_877_666_25).fract();
-        w.add_particle(&ParticleDef {
-            pos: Vec2::new((fx * 200.0) as f32, (fy * 112.5) as f32),
-            vel: Vec2::new(((fy - 0.5) * 20.0) as f32, ((fx - 0.5) * 20.0) as f32),
-            life: 1e9,
-            drag: 1.0,
-            ..ParticleDef::default()
-        })
-        .expect("valid particle");
-    }
-    w
+            figure: Figure::Drift,
+        },
+        Case {
+            scene: "bench/particles-100k-shapes.toml",
+            warmup: 150,
+            steps: 50,
+            settings: shipped(),
+            figure: Figure::NsPerParticle,
+        },
+        Case {
+            scene: "bench/particles-1m-free.toml",
+            warmup: 150,
+            steps: 20,
+            settings: shipped(),
+            figure: Figure::NsPerParticle,
+        },
+        Case {
+            scene: "bench/platforms-10.toml",
+            warmup: 0,
+            steps: 600,
+            settings: shipped(),
+            figure: Figure::None,
+        },
+        Case {
+            scene: "bench/platforms-10k.toml",
+            warmup: 0,
+            steps: 600,
+            settings: shipped(),
+            figure: Figure::None,
+        },
+    ]
 }
 
-/// Particles against shapes: median ns per particle per step.
-pub fn particle_case(count: usize, shapes: usize, steps: u64) -> Figure {
-    let mut w = particle_world(count, shapes);
-    let ms = median(timed(&mut w, steps));
-    Figure {
-        case: format!("{count} particles, {shapes} shapes"),
-        setting: "default".into(),
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
+
+/// Loads `scene` from `dir` with `overrides` over its `[world]`.
+pub fn load(dir: &Path, scene: &str, overrides: &[String]) -> Result<World> {
+    let path: PathBuf = dir.join(scene);
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(scene::parse(&text, &path, overrides)?)
+}
+
+/// Runs one case under one setting.
+pub fn measure(
+    dir: &Path,
+    case: &Case,
+    label: &str,
+    overrides: &[String],
+    steps: u64,
+) -> Result<Row> {
+    let mut w = load(dir, case.scene, overrides)?;
+    w.step_n(case.warmup);
+    let start: Vec<DVec2> = w.bodies().iter().map(|b| b.pos).collect();
+    let unit = w
+        .bodies()
+        .iter()
+        .filter(|b| !b.is_static())
+        .map(|b| b.shape.half_extents().min_element() * 2.0)
+        .fold(f64::INFINITY, f64::min);
+    let mut times = Vec::with_capacity(steps as usize);
+    let mut worst: f64 = 0.0;
+    let drift_now = |w: &World| {
+        w.bodies()
+            .iter()
+            .zip(&start)
+            .filter(|(b, _)| !b.is_static())
+            .map(|(b, p)| (b.pos - *p).length())
+            .fold(0.0, f64::max)
+    };
+    for _ in 0..steps {
+        let t = Instant::now();
+        w.step();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        if case.figure == Figure::Drift {
+            worst = worst.max(drift_now(&w));
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    let ms_median = percentile(&times, 0.5);
+    let nan = w
+        .bodies()
+        .iter()
+        .any(|b| !(b.pos.is_finite() && b.vel.is_finite()))
+        || w.particles().x.iter().any(|x| !x.is_finite());
+    let particles = w.particles().len();
+    let drift = |v: f64| (case.figure == Figure::Drift).then_some(v / unit);
+    Ok(Row {
+        scene: case.scene.trim_end_matches(".toml").to_string(),
+        setting: label.to_string(),
+        overrides: overrides.join(" "),
+        bodies: w.bodies().len(),
+        particles,
         steps,
-        ms_per_step: ms,
-        extra: ms * 1e6 / count as f64,
-        extra_name: "ns per particle per step",
-    }
-}
-
-/// One hero on a floor among `platforms` static platforms: ms per step.
-pub fn statics_case(platforms: usize, steps: u64) -> Figure {
-    let mut w = World::new(WorldConfig::default());
-    let cols = (platforms as f64).sqrt().ceil() as usize;
-    for k in 0..platforms {
-        let (i, j) = (k % cols, k / cols);
-        w.add_body(BodyDef {
-            id: format!("platform/{k}"),
-            group: "platforms".into(),
-            shape: Shape::rect(30.0, 3.75),
-            pos: DVec2::new(i as f64 * 40.0, j as f64 * 20.0),
-            mass: 0.0,
-            ..BodyDef::default()
-        })
-        .expect("valid platform");
-    }
-    w.add_body(BodyDef {
-        id: "hero".into(),
-        group: "hero".into(),
-        shape: Shape::rect(16.0, 22.0),
-        pos: DVec2::new(0.0, 40.0),
-        mass: 0.7,
-        restitution: 0.3,
-        ..BodyDef::default()
+        ms_median,
+        ms_p10: percentile(&times, 0.1),
+        ms_p90: percentile(&times, 0.9),
+        worst_drift: drift(worst),
+        final_drift: drift(drift_now(&w)),
+        ns_per_particle: (case.figure == Figure::NsPerParticle && particles > 0)
+            .then(|| ms_median * 1e6 / particles as f64),
+        nan,
     })
-    .expect("valid hero");
-    w.add_interaction("hero", "platforms", true)
-        .expect("groups exist");
-    let ms = median(timed(&mut w, steps));
-    Figure {
-        case: format!("hero among {platforms} static platforms"),
-        setting: "default".into(),
-        steps,
-        ms_per_step: ms,
-        extra: platforms as f64,
-        extra_name: "platforms",
+}
+
+/// The rows as CSV.
+pub fn to_csv(rows: &[Row]) -> Result<String> {
+    let mut out = csv::Writer::from_writer(Vec::new());
+    for r in rows {
+        out.serialize(r)?;
+    }
+    Ok(String::from_utf8(out.into_inner()?)?)
+}
+
+/// The rows as a Markdown table.
+pub fn to_markdown(rows: &[Row]) -> String {
+    let opt =
+        |v: Option<f64>, digits: usize| v.map(|v| format!("{v:.digits$}")).unwrap_or_default();
+    let mut out = String::from(
+        "| scene | setting | bodies | particles | steps | median ms/step (p10-p90) | worst drift (body sizes) | drift at the end | ns per particle-step |\n|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        out += &format!(
+            "| {} | {} | {} | {} | {} | {:.4} ({:.4}-{:.4}) | {}{} | {} | {} |\n",
+            r.scene,
+            r.setting,
+            r.bodies,
+            r.particles,
+            r.steps,
+            r.ms_median,
+            r.ms_p10,
+            r.ms_p90,
+            opt(r.worst_drift, 4),
+            if r.nan { " NaN" } else { "" },
+            opt(r.final_drift, 4),
+            opt(r.ns_per_particle, 2),
+        );
+    }
+    out
+}
+
+/// Replaces what lies between `<!-- NAME:begin -->` and `<!-- NAME:end -->` in the file
+/// at `path` by `content`: the generated part of a hand-written page.
+pub fn splice(path: &Path, name: &str, content: &str) -> Result<()> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let (begin, end) = (
+        format!("<!-- {name}:begin -->"),
+        format!("<!-- {name}:end -->"),
+    );
+    let (Some(a), Some(b)) = (text.find(&begin), text.find(&end)) else {
+        anyhow::bail!("{} has no {begin} ... {end} markers", path.display());
+    };
+    anyhow::ensure!(a < b, "{}: {end} comes before {begin}", path.display());
+    let spliced = format!("{}{begin}\n{content}{}", &text[..a], &text[b..]);
+    std::fs::write(path, spliced).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The machine the figures were taken on, in one line.
+pub fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!("{cores} cores ({cpu}), one thread used")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scenes() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes")
+    }
+
+    #[test]
+    fn every_case_loads_its_shipped_scene_under_every_setting() {
+        for case in cases(None, 1) {
+            for (label, overrides) in &case.settings {
+                load(&scenes(), case.scene, overrides)
+                    .unwrap_or_else(|e| panic!("{} / {label}: {e:#}", case.scene));
+            }
+        }
+    }
+
+    #[test]
+    fn drift_is_the_worst_over_the_run_in_body_sizes() {
+        let case = Case {
+            scene: "stack-20.toml",
+            warmup: 0,
+            steps: 60,
+            settings: Vec::new(),
+            figure: Figure::Drift,
+        };
+        // The chapter's relaxation lets the stack sink: the worst drift over the run is
+        // at least the drift at its end, and both are measured, not zero.
+        let row = measure(&scenes(), &case, "chapter", &[], 60).unwrap();
+        let (worst, last) = (row.worst_drift.unwrap(), row.final_drift.unwrap());
+        assert!(worst >= last && last > 0.0, "{worst} {last}");
+        assert!(row.ms_p10 <= row.ms_median && row.ms_median <= row.ms_p90);
+        let csv = to_csv(&[row.clone()]).unwrap();
+        assert!(csv.starts_with("scene,setting,overrides,"), "{csv}");
+        assert!(to_markdown(&[row]).contains("| stack-20 | chapter |"));
+    }
+
+    #[test]
+    fn splice_replaces_only_between_the_markers() {
+        let dir = tempfile::tempdir().unwrap();
+        let page = dir.path().join("page.md");
+        std::fs::write(
+            &page,
+            "intro\n<!-- t:begin -->\nold\n<!-- t:end -->\noutro\n",
+        )
+        .unwrap();
+        splice(&page, "t", "new\n").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&page).unwrap(),
+            "intro\n<!-- t:begin -->\nnew\n<!-- t:end -->\noutro\n"
+        );
+        assert!(splice(&page, "u", "x").is_err());
     }
 }

@@ -6,7 +6,6 @@ use std::time::Instant;
 
 use glam::DVec2;
 
-use super::bench::split_setting;
 use ricochet_engine::dynamics::config::{Integrator, Solver, WorldConfig};
 use ricochet_engine::dynamics::{BodyDef, BroadPhase};
 use ricochet_engine::geometry::Shape;
@@ -20,6 +19,21 @@ pub struct Setting {
 }
 
 /// The settings measured.
+/// `base` with the impulse solver, split impulses (baumgarte 0.5, slop 1e-4) and the grid
+/// broad phase: the shipped pyramid-100 scene's solver.
+fn split_setting(base: &WorldConfig, iterations: u32, substeps: u32) -> WorldConfig {
+    WorldConfig {
+        solver: Solver::Impulses,
+        impulse_iterations: iterations,
+        substeps,
+        split_impulses: true,
+        baumgarte: 0.5,
+        slop: 0.0001,
+        broad_phase: BroadPhase::Grid,
+        ..base.clone()
+    }
+}
+
 pub fn settings() -> Vec<Setting> {
     let base = WorldConfig {
         gravity: DVec2::new(0.0, -10.0),

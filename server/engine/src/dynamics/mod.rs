@@ -1,4 +1,9 @@
-//! Rigid bodies, their movement and the relaxation solver.
+//! Rigid bodies, the world's parameters, and what moves them: integration, broad phases
+//! and the solvers (the chapter's relaxation, sequential impulses).
+//!
+//! In: bodies, candidate pairs and the world's parameters ([`WorldConfig`], changed one
+//! typed [`Setting`] at a time). Out: bodies moved and resolved for one step, with the
+//! figures of the solve (contacts, passes run, deepest penetration).
 
 pub mod body;
 pub mod broad_phase;

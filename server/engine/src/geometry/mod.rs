@@ -1,4 +1,7 @@
 //! Shapes and narrow-phase collision detection.
+//!
+//! In: two shapes and their positions. Out: whether they overlap, and by how much along
+//! which normal (or their separation, for speculative contacts). No state.
 
 pub mod collision;
 pub mod shape;

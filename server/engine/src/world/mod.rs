@@ -6,6 +6,12 @@
 //! declared interactions in their order, each rigid pair of groups with its own
 //! relaxation loop and each particle pair by projection. Nothing is computed for what
 //! no interaction names.
+//!
+//! In: scene definitions (bodies, particles, emitters, interactions) and typed actions
+//! between steps. Out: the state after each step and the step's figures ([`StepStats`]).
+//! The files split it by concept: `store` (adding and removing bodies, groups, ids),
+//! `step` (the pipeline), `candidates` (which broad phase yields a group pair's
+//! candidates), `demo` (the chapter demo's behaviours), `actions` (what clients do).
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

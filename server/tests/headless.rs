@@ -5,24 +5,13 @@ use std::process::{Command, Output};
 
 use ricochet_protocol::dump::{read_dump, FrameRecord};
 
-/// The server binary built next to this test (`cargo test --workspace` builds it).
+/// The server binary (Cargo builds it for this package's tests).
 fn server_bin() -> PathBuf {
-    let exe = std::env::current_exe().expect("test binary path");
-    let dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .expect("target/<profile>/deps");
-    let bin = dir.join(format!("ricochet-server{}", std::env::consts::EXE_SUFFIX));
-    assert!(
-        bin.exists(),
-        "{} is missing: run the tests with `cargo test --workspace`, which builds it",
-        bin.display()
-    );
-    bin
+    PathBuf::from(env!("CARGO_BIN_EXE_ricochet-server"))
 }
 
 fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 fn scene(name: &str) -> PathBuf {
@@ -198,4 +187,68 @@ fn a_bad_input_line_is_refused_with_its_line() {
         err.contains("line 2: not an input line") && err.contains("teleport"),
         "{err}"
     );
+}
+
+#[test]
+fn stats_has_one_line_per_step_with_the_passes_counted() {
+    let stats = tmp("stats.jsonl");
+    simulate_ok(&[
+        "--scene",
+        scene("stack-20.toml").to_str().unwrap(),
+        "--steps",
+        "30",
+        "--set",
+        "solver=impulses",
+        "--set",
+        "substeps=2",
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&stats).unwrap();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 30);
+    assert_eq!(lines[0]["frame"], 1);
+    assert_eq!(lines[29]["frame"], 30);
+    // 8 impulse iterations in each of 2 sub-steps, counted as they ran.
+    assert!(lines.iter().all(|l| l["passes"] == 16), "{}", lines[0]);
+    assert!(lines.iter().any(|l| l["contacts"].as_u64().unwrap() > 0));
+}
+
+#[test]
+fn bench_measures_shipped_scenes_and_writes_its_csv_and_table() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("README.md"),
+        "# Figures\n<!-- bench:begin -->\nold\n<!-- bench:end -->\nprose\n",
+    )
+    .unwrap();
+    let out = Command::new(server_bin())
+        .args(["bench", "--only", "platforms-10.", "--scenes"])
+        .arg(root().join("assets/scenes"))
+        .arg("--out")
+        .arg(dir.path())
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = std::fs::read_to_string(dir.path().join("bench.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    assert!(
+        rows[1].starts_with("bench/platforms-10,shipped,,11,0,600,"),
+        "{csv}"
+    );
+    let page = std::fs::read_to_string(dir.path().join("README.md")).unwrap();
+    assert!(
+        page.contains("| bench/platforms-10 | shipped | 11 |"),
+        "{page}"
+    );
+    assert!(!page.contains("old") && page.ends_with("<!-- bench:end -->\nprose\n"));
 }

@@ -1,0 +1,40 @@
+//! The `ricochet` command line: malformed commands and flags are refused with a message
+//! naming what was wrong, before anything is sent (real processes, no server needed).
+
+use std::process::{Command, Output};
+
+fn ricochet(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ricochet"))
+        .args(args)
+        .env("RUST_LOG", "error")
+        .output()
+        .expect("ricochet runs")
+}
+
+fn refused(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "accepted: {err}");
+    assert!(err.contains(needle), "`{needle}` not in: {err}");
+}
+
+#[test]
+fn malformed_commands_are_refused_before_sending() {
+    refused(
+        &ricochet(&["send", "teleport", "at=[1,2]"]),
+        "unknown command `teleport`",
+    );
+    refused(
+        &ricochet(&["send", "fire_dye_pack", "at"]),
+        "`at` is not NAME=VALUE",
+    );
+    refused(&ricochet(&["send", "set", "name=warp", "value=9"]), "warp");
+    refused(
+        &ricochet(&["send", "spawn_minion", "at=[1,2]", "shape=hexagon"]),
+        "hexagon",
+    );
+}
+
+#[test]
+fn network_flags_are_checked() {
+    refused(&ricochet(&["--mode", "satellite", "worlds"]), "satellite");
+}
