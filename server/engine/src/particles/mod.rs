@@ -10,4 +10,4 @@ pub mod system;
 
 pub use emitter::Emitter;
 pub use preset::{ParticlePreset, PresetLibrary, Sample};
-pub use system::{ParticleDef, Particles};
+pub use system::{color_after, size_after, ParticleDef, Particles};

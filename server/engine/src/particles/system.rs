@@ -8,6 +8,18 @@
 
 use glam::{Vec2, Vec4};
 
+/// The particle colour model, the one the engine and every receiver of frames use: the
+/// start colour plus `delta` per update lived, for a particle `age` updates old.
+pub fn color_after(start: Vec4, delta: Vec4, age: f32) -> Vec4 {
+    start + delta * age
+}
+
+/// The particle size model: `size` scaled by `size_delta` once per update, `updates`
+/// updates later.
+pub fn size_after(size: f32, size_delta: f32, updates: i32) -> f32 {
+    size * size_delta.powi(updates)
+}
+
 /// One particle as a scene or a preset defines it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParticleDef {
@@ -162,10 +174,13 @@ impl Particles {
         self.color_delta.push(delta.to_array());
     }
 
-    /// The colour of particle `i` now: start colour plus one delta per update lived.
+    /// The colour of particle `i` now ([`color_after`] its age).
     pub fn color_of(&self, i: usize) -> Vec4 {
-        Vec4::from(self.color[i])
-            + Vec4::from(self.color_delta[i]) * (self.initial_life[i] - self.life[i])
+        color_after(
+            Vec4::from(self.color[i]),
+            Vec4::from(self.color_delta[i]),
+            self.initial_life[i] - self.life[i],
+        )
     }
 
     pub fn pos(&self, i: usize) -> Vec2 {

@@ -1,0 +1,242 @@
+//! The decoder: bytes flow in, frame by frame; what a receiver knows of the world flows
+//! out ([`FrameDecoder`]). Nothing read off the wire is trusted: every count is checked
+//! against the bytes that remain before anything is allocated for it, and a payload that
+//! fails anywhere leaves the state as it was.
+
+use super::records::{self};
+use super::wire::Reader;
+use super::{
+    Body, DecodeError, EmitterIn, FrameStats, Particle, COLLIDED, KIND_DELTA, KIND_STATICS, MAGIC,
+    NEW, POS, REMOVED, VEL,
+};
+
+/// What a receiver knows of a world, kept up to date frame by frame.
+#[derive(Clone, Debug, Default)]
+pub struct FrameDecoder {
+    /// Dynamic bodies, by increasing key.
+    pub bodies: Vec<Body>,
+    /// Static bodies from the latest snapshot, by increasing key.
+    pub statics: Vec<Body>,
+    /// Particles, by increasing id.
+    pub particles: Vec<Particle>,
+    pub emitters: Vec<EmitterIn>,
+    pub frame: u64,
+    pub time: f64,
+    pub stats: FrameStats,
+    /// Whether a key frame has been applied since the last gap.
+    pub synced: bool,
+}
+
+/// The header of a payload.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Header {
+    pub kind: u8,
+    pub frame: u64,
+    pub time: f64,
+    pub stats: FrameStats,
+}
+
+fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
+    if r.take(3)? != MAGIC {
+        return Err(DecodeError::Malformed("no RCF magic".into()));
+    }
+    let version = r.u8()?;
+    if version != crate::PROTOCOL_VERSION {
+        return Err(DecodeError::Version(version));
+    }
+    let kind = r.u8()?;
+    if kind > KIND_STATICS {
+        return Err(DecodeError::Malformed(format!("unknown kind {kind}")));
+    }
+    let frame = r.u64()?;
+    let time = f64::from_bits(r.u64()?);
+    let stats = FrameStats {
+        step_ms: r.f32()?,
+        contacts: r.u32()?,
+        relaxation_iterations: r.u32()?,
+        deepest_penetration: r.f32()?,
+        kinetic_energy: r.f32()?,
+        particle_contacts: r.u32()?,
+        overruns: r.u32()?,
+        dynamic_bodies: r.u32()?,
+        particles: r.u32()?,
+        emitters: r.u32()?,
+    };
+    Ok(Header {
+        kind,
+        frame,
+        time,
+        stats,
+    })
+}
+
+/// Reads only the header of a payload.
+pub fn peek_header(bytes: &[u8]) -> Result<Header, DecodeError> {
+    read_header(&mut Reader::new(bytes))
+}
+
+impl FrameDecoder {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Applies a frame or a snapshot. A delta frame is refused unless it follows the last
+    /// frame applied; the state is unchanged by a refused payload.
+    pub fn apply(&mut self, bytes: &[u8]) -> Result<Header, DecodeError> {
+        let mut r = Reader::new(bytes);
+        let header = read_header(&mut r)?;
+        // A key frame always applies (frame numbers restart after a reset); a delta frame
+        // not newer than the state held was already folded into it.
+        if header.kind == KIND_DELTA && self.synced && header.frame <= self.frame {
+            return Err(DecodeError::Stale {
+                frame: header.frame,
+            });
+        }
+        if header.kind == KIND_DELTA
+            && !(self.synced && self.frame.checked_add(1) == Some(header.frame))
+        {
+            self.synced = false;
+            return Err(DecodeError::OutOfSync {
+                expected: self.frame.saturating_add(1),
+                got: header.frame,
+            });
+        }
+        // An emitter is at least 9 bytes: two f32 and a varint.
+        let mut emitters = Vec::with_capacity(r.count(9)?);
+        for _ in 0..emitters.capacity() {
+            emitters.push(EmitterIn {
+                x: r.f32()?,
+                y: r.f32()?,
+                remaining: u32::try_from(r.varint()?)
+                    .map_err(|_| DecodeError::Malformed("emitter count over 32 bits".into()))?,
+            });
+        }
+        let delta = header.kind == KIND_DELTA;
+        let held = if delta {
+            self.bodies.clone()
+        } else {
+            Vec::new()
+        };
+        let bodies = read_bodies(&mut r, held, !delta)?;
+        let held = if delta {
+            self.particles.clone()
+        } else {
+            Vec::new()
+        };
+        let particles = read_particles(&mut r, held, header.frame)?;
+        if r.at != bytes.len() {
+            return Err(DecodeError::Malformed(format!(
+                "{} bytes left over",
+                bytes.len() - r.at
+            )));
+        }
+        if header.kind == KIND_STATICS {
+            self.statics = bodies;
+            return Ok(header);
+        }
+        self.bodies = bodies;
+        self.particles = particles;
+        self.emitters = emitters;
+        self.frame = header.frame;
+        self.time = header.time;
+        self.stats = header.stats;
+        self.synced = true;
+        Ok(header)
+    }
+
+    /// The body with this id, dynamic or static.
+    pub fn body(&self, id: &str) -> Option<&Body> {
+        self.bodies.iter().chain(&self.statics).find(|b| b.id == id)
+    }
+}
+
+/// Adds a change read off the wire to a quantised coordinate, refusing an overflow.
+fn add(q: &mut i64, change: i64) -> Result<(), DecodeError> {
+    *q = q
+        .checked_add(change)
+        .ok_or_else(|| DecodeError::Malformed("a coordinate overflows".into()))?;
+    Ok(())
+}
+
+fn read_bodies(r: &mut Reader, held: Vec<Body>, fresh: bool) -> Result<Vec<Body>, DecodeError> {
+    records::read(r, held, |r, key, flags, existing| {
+        if flags & REMOVED != 0 {
+            return match existing {
+                Some(_) => Ok(None),
+                None => Err(DecodeError::Malformed(format!(
+                    "removal of unknown body {key}"
+                ))),
+            };
+        }
+        if flags & NEW != 0 {
+            let circle = r.u8()? != 0;
+            let size = [r.f32()?, r.f32()?];
+            let id = r.str()?;
+            let group = r.str()?;
+            let qpos = [r.svarint()?, r.svarint()?];
+            let qvel = [r.svarint()?, r.svarint()?];
+            return Ok(Some(Body {
+                key,
+                id,
+                group,
+                circle,
+                size,
+                qpos,
+                qvel,
+                collided: flags & COLLIDED != 0,
+            }));
+        }
+        let mut b = existing.ok_or_else(|| {
+            DecodeError::Malformed(format!(
+                "update of unknown body {key}{}",
+                if fresh { " in a key frame" } else { "" }
+            ))
+        })?;
+        if flags & POS != 0 {
+            add(&mut b.qpos[0], r.svarint()?)?;
+            add(&mut b.qpos[1], r.svarint()?)?;
+        }
+        if flags & VEL != 0 {
+            add(&mut b.qvel[0], r.svarint()?)?;
+            add(&mut b.qvel[1], r.svarint()?)?;
+        }
+        b.collided = flags & COLLIDED != 0;
+        Ok(Some(b))
+    })
+}
+
+fn read_particles(
+    r: &mut Reader,
+    held: Vec<Particle>,
+    frame: u64,
+) -> Result<Vec<Particle>, DecodeError> {
+    records::read(r, held, |r, id, flags, existing| {
+        if flags & REMOVED != 0 {
+            return Ok(None);
+        }
+        if flags & NEW != 0 {
+            let qpos = [r.svarint()?, r.svarint()?];
+            let color0 = r.bytes4()?;
+            let color1 = r.bytes4()?;
+            let (initial_life, life, size, size_delta) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);
+            return Ok(Some(Particle {
+                id,
+                qpos,
+                color0,
+                color1,
+                initial_life,
+                life,
+                size,
+                size_delta,
+                record_frame: frame,
+            }));
+        }
+        let mut p = existing
+            .ok_or_else(|| DecodeError::Malformed(format!("update of unknown particle {id}")))?;
+        if flags & POS != 0 {
+            add(&mut p.qpos[0], r.svarint()?)?;
+            add(&mut p.qpos[1], r.svarint()?)?;
+        }
+        Ok(Some(p))
+    })
+}

@@ -1,0 +1,127 @@
+//! Delta tracking, the one merge both sides of the codec share: the state receivers hold
+//! (a list sorted by key) walked alongside the state now, record by record.
+//!
+//! A section is a count, then records in increasing key order, each starting with its
+//! key's gap to the previous record's key and a flags byte. The encoder writes a record
+//! for what was added, changed or removed ([`diff`]); the decoder folds records into the
+//! state it holds ([`read`]). Bodies and particles differ only in what a record carries,
+//! which the callers say.
+
+use super::wire::{put_varint, Reader};
+use super::{Body, DecodeError, Particle, REMOVED};
+
+/// Something a section tracks by an increasing key.
+pub(super) trait Keyed {
+    fn key(&self) -> u32;
+}
+
+impl Keyed for Body {
+    fn key(&self) -> u32 {
+        self.key
+    }
+}
+
+impl Keyed for Particle {
+    fn key(&self) -> u32 {
+        self.id
+    }
+}
+
+/// The records of one section, being written.
+pub(super) struct Records {
+    bytes: Vec<u8>,
+    count: u64,
+    prev: u32,
+}
+
+impl Records {
+    pub fn with_capacity(bytes: usize) -> Self {
+        Records {
+            bytes: Vec::with_capacity(bytes),
+            count: 0,
+            prev: 0,
+        }
+    }
+
+    /// Starts the record of `key` (keys strictly increasing) and returns where its flags
+    /// and payload go.
+    pub fn start(&mut self, key: u32) -> &mut Vec<u8> {
+        put_varint(&mut self.bytes, (key - self.prev) as u64);
+        self.prev = key;
+        self.count += 1;
+        &mut self.bytes
+    }
+
+    /// A record saying `key` is gone.
+    pub fn removed(&mut self, key: u32) {
+        self.start(key).push(REMOVED);
+    }
+
+    /// Writes the section: its count, then its records.
+    pub fn finish(self, out: &mut Vec<u8>) {
+        put_varint(out, self.count);
+        out.extend_from_slice(&self.bytes);
+    }
+}
+
+/// Diffs `now` (items in increasing key order, `key` giving each one's) against `sent`,
+/// what receivers were last told (same order). For every item of `now`, `record` gets
+/// the receivers' version if they have one, writes whatever record it needs, and returns
+/// what receivers know of the item afterwards; every item of `sent` missing from `now`
+/// gets a REMOVED record. Returns what receivers know after the section.
+pub(super) fn diff<T: Keyed, N>(
+    sent: Vec<T>,
+    now: impl IntoIterator<Item = N>,
+    key: impl Fn(&N) -> u32,
+    records: &mut Records,
+    mut record: impl FnMut(&mut Records, Option<T>, N) -> T,
+) -> Vec<T> {
+    let now = now.into_iter();
+    let mut told = Vec::with_capacity(now.size_hint().0);
+    let mut sent = sent.into_iter().peekable();
+    for item in now {
+        let k = key(&item);
+        while let Some(old) = sent.next_if(|s| s.key() < k) {
+            records.removed(old.key());
+        }
+        let old = sent.next_if(|s| s.key() == k);
+        told.push(record(records, old, item));
+    }
+    for old in sent {
+        records.removed(old.key());
+    }
+    told
+}
+
+/// Reads a section and folds it into `held` (by increasing key): items without a record
+/// stay as they are; for each record `apply` gets the reader at its payload, the key, the
+/// flags and the held item of that key if any, and returns the item as it is now, or
+/// `None` when the record removed it.
+pub(super) fn read<T: Keyed>(
+    r: &mut Reader,
+    held: Vec<T>,
+    mut apply: impl FnMut(&mut Reader, u32, u8, Option<T>) -> Result<Option<T>, DecodeError>,
+) -> Result<Vec<T>, DecodeError> {
+    // A record is at least a key gap and a flags byte.
+    let n = r.count(2)?;
+    let mut out = Vec::with_capacity(held.len().saturating_add(n));
+    let mut old = held.into_iter().peekable();
+    let mut key = 0u32;
+    for _ in 0..n {
+        let gap = u32::try_from(r.varint()?)
+            .map_err(|_| DecodeError::Malformed("key gap over 32 bits".into()))?;
+        key = key
+            .checked_add(gap)
+            .ok_or_else(|| DecodeError::Malformed("key overflow".into()))?;
+        while let Some(item) = old.next_if(|b| b.key() < key) {
+            out.push(item);
+        }
+        let existing = old.next_if(|b| b.key() == key);
+        let flags = r.u8()?;
+        if let Some(item) = apply(r, key, flags, existing)? {
+            out.push(item);
+        }
+    }
+    out.extend(old);
+    Ok(out)
+}

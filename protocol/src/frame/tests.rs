@@ -1,0 +1,275 @@
+//! The codec, encoder to decoder: deltas, key frames, resync, statics and garbage.
+
+use super::*;
+
+fn body(key: u32, id: &str, pos: [f64; 2]) -> BodyIn<'_> {
+    BodyIn {
+        key,
+        id,
+        group: "g",
+        circle: key.is_multiple_of(2),
+        size: [2.0, 3.0],
+        pos,
+        vel: [1.0, -2.0],
+        collided: false,
+    }
+}
+
+#[derive(Default)]
+struct Cloud {
+    id: Vec<u32>,
+    x: Vec<f32>,
+    y: Vec<f32>,
+    life: Vec<f32>,
+    initial_life: Vec<f32>,
+    size: Vec<f32>,
+    size_delta: Vec<f32>,
+    color: Vec<[f32; 4]>,
+    color_delta: Vec<[f32; 4]>,
+}
+
+impl Cloud {
+    fn push(&mut self, id: u32, x: f32, y: f32) {
+        self.id.push(id);
+        self.x.push(x);
+        self.y.push(y);
+        self.life.push(10.0);
+        self.initial_life.push(10.0);
+        self.size.push(2.0);
+        self.size_delta.push(0.5);
+        self.color.push([1.0, 0.0, 0.0, 1.0]);
+        self.color_delta.push([0.3, 0.0, 0.0, -0.05]);
+    }
+    fn view(&self) -> ParticlesIn<'_> {
+        ParticlesIn {
+            id: &self.id,
+            x: &self.x,
+            y: &self.y,
+            life: &self.life,
+            initial_life: &self.initial_life,
+            size: &self.size,
+            size_delta: &self.size_delta,
+            color: &self.color,
+            color_delta: &self.color_delta,
+        }
+    }
+}
+
+#[test]
+fn deltas_rebuild_the_state_and_resting_things_cost_nothing() {
+    let mut enc = FrameEncoder::new(60);
+    let mut dec = FrameDecoder::new();
+    let mut cloud = Cloud::default();
+    cloud.push(3, 10.0, 20.0);
+    cloud.push(7, 11.0, 21.0);
+    let bodies = [
+        body(0, "a", [1.0, 2.0]),
+        body(1, "b", [5.0, 5.0]),
+        body(4, "c", [9.0, 9.0]),
+    ];
+    let f0 = enc.encode(0, 0.0, &FrameStats::default(), &[], &bodies, &cloud.view());
+    assert_eq!(dec.apply(&f0).unwrap().kind, KIND_KEY);
+    assert_eq!(dec.bodies.len(), 3);
+    assert_eq!(dec.body("c").unwrap().pos(), [9.0, 9.0]);
+    assert_eq!(dec.particles.len(), 2);
+
+    // Nothing changes: a delta frame of the header and three empty sections.
+    let f1 = enc.encode(1, 0.1, &FrameStats::default(), &[], &bodies, &cloud.view());
+    assert_eq!(f1.len(), HEADER_BYTES + 3);
+    dec.apply(&f1).unwrap();
+
+    // b moves, a is removed, d is new; particle 3 moves, 7 expires, 9 is born.
+    let moved = [
+        body(1, "b", [5.5, 5.0]),
+        body(4, "c", [9.0, 9.0]),
+        body(6, "d", [0.0, 0.0]),
+    ];
+    let mut cloud2 = Cloud::default();
+    cloud2.push(3, 10.5, 20.0);
+    cloud2.push(9, 0.0, 0.0);
+    let f2 = enc.encode(
+        2,
+        0.2,
+        &FrameStats::default(),
+        &[EmitterIn {
+            x: 1.0,
+            y: 2.0,
+            remaining: 7,
+        }],
+        &moved,
+        &cloud2.view(),
+    );
+    dec.apply(&f2).unwrap();
+    let ids: Vec<&str> = dec.bodies.iter().map(|b| b.id.as_str()).collect();
+    assert_eq!(ids, ["b", "c", "d"]);
+    assert_eq!(dec.body("b").unwrap().pos(), [5.5, 5.0]);
+    assert_eq!(
+        dec.particles.iter().map(|p| p.id).collect::<Vec<_>>(),
+        [3, 9]
+    );
+    assert_eq!(dec.particles[0].pos(), [10.5, 20.0]);
+    assert_eq!(
+        dec.emitters,
+        [EmitterIn {
+            x: 1.0,
+            y: 2.0,
+            remaining: 7
+        }]
+    );
+}
+
+#[test]
+fn particle_colour_and_size_follow_from_the_birth_record() {
+    let mut enc = FrameEncoder::new(60);
+    let mut dec = FrameDecoder::new();
+    let mut cloud = Cloud::default();
+    cloud.push(1, 0.0, 0.0);
+    cloud.life[0] = 6.0; // born 4 updates ago
+    cloud.size[0] = 2.0;
+    dec.apply(&enc.encode(100, 0.0, &FrameStats::default(), &[], &[], &cloud.view()))
+        .unwrap();
+    let p = &dec.particles[0];
+    // Colour at frame 100 = start + delta * age(4); final = start + delta * 10.
+    let c = p.color_at(100);
+    assert!(
+        (c[0] - 2.2).abs() < 0.02 && (c[3] - 0.8).abs() < 0.02,
+        "{c:?}"
+    );
+    let c = p.color_at(106);
+    assert!(
+        (c[0] - 4.0).abs() < 0.02 && (c[3] - 0.5).abs() < 0.02,
+        "{c:?}"
+    );
+    assert_eq!(p.size_at(102), 0.5);
+}
+
+#[test]
+fn a_missed_frame_waits_for_the_next_key_frame() {
+    let mut enc = FrameEncoder::new(3);
+    let mut dec = FrameDecoder::new();
+    let cloud = Cloud::default();
+    let frames: Vec<Vec<u8>> = (0..7)
+        .map(|k| {
+            enc.encode(
+                k,
+                0.0,
+                &FrameStats::default(),
+                &[],
+                &[body(0, "a", [k as f64, 0.0])],
+                &cloud.view(),
+            )
+        })
+        .collect();
+    let kinds: Vec<u8> = frames
+        .iter()
+        .map(|f| peek_header(f).unwrap().kind)
+        .collect();
+    assert_eq!(
+        kinds,
+        [KIND_KEY, KIND_DELTA, KIND_DELTA, KIND_KEY, KIND_DELTA, KIND_DELTA, KIND_KEY]
+    );
+    dec.apply(&frames[0]).unwrap();
+    // Frame 1 is lost: frame 2 is refused, frame 3 (key) resynchronises.
+    assert_eq!(
+        dec.apply(&frames[2]),
+        Err(DecodeError::OutOfSync {
+            expected: 1,
+            got: 2
+        })
+    );
+    assert!(!dec.synced);
+    dec.apply(&frames[3]).unwrap();
+    dec.apply(&frames[4]).unwrap();
+    assert_eq!(dec.body("a").unwrap().pos(), [4.0, 0.0]);
+}
+
+#[test]
+fn a_late_joiner_resyncs_from_the_encoders_state_and_follows_the_deltas() {
+    let mut enc = FrameEncoder::new(1000);
+    let mut early = FrameDecoder::new();
+    let mut cloud = Cloud::default();
+    cloud.push(1, 0.0, 0.0);
+    assert!(enc.resync_frame().is_none());
+    let mut frames = Vec::new();
+    for k in 0..10u64 {
+        cloud.x[0] = k as f32;
+        cloud.life[0] = 10.0 - k as f32;
+        cloud.size[0] = 2.0 * 0.5f32.powi(k as i32);
+        frames.push(enc.encode(
+            k,
+            k as f64,
+            &FrameStats::default(),
+            &[],
+            &[body(0, "a", [k as f64, 1.0])],
+            &cloud.view(),
+        ));
+        early.apply(frames.last().unwrap()).unwrap();
+    }
+    // Joining after frame 9: the resync frame, then frame 9 again (stale) is ignored.
+    let mut late = FrameDecoder::new();
+    late.apply(&enc.resync_frame().unwrap()).unwrap();
+    assert_eq!(late.apply(&frames[9]), Err(DecodeError::Stale { frame: 9 }));
+    assert_eq!(late.apply(&frames[8]), Err(DecodeError::Stale { frame: 8 }));
+    assert!(late.synced);
+    cloud.x[0] = 10.0;
+    let next = enc.encode(
+        10,
+        10.0,
+        &FrameStats::default(),
+        &[],
+        &[body(0, "a", [10.0, 1.0])],
+        &cloud.view(),
+    );
+    early.apply(&next).unwrap();
+    late.apply(&next).unwrap();
+    assert_eq!(late.bodies, early.bodies);
+    assert_eq!(late.particles[0].qpos, early.particles[0].qpos);
+    assert_eq!(
+        late.particles[0].color_at(10),
+        early.particles[0].color_at(10)
+    );
+    assert_eq!(
+        late.particles[0].size_at(10),
+        early.particles[0].size_at(10)
+    );
+}
+
+#[test]
+fn statics_are_a_snapshot_of_their_own() {
+    let statics = [body(2, "floor", [0.0, 0.0]), body(5, "wall", [100.0, 50.0])];
+    let snap = encode_statics(12, 0.2, &statics);
+    let mut dec = FrameDecoder::new();
+    assert_eq!(dec.apply(&snap).unwrap().kind, KIND_STATICS);
+    assert_eq!(dec.statics.len(), 2);
+    assert_eq!(dec.body("wall").unwrap().pos(), [100.0, 50.0]);
+    assert!(dec.bodies.is_empty());
+}
+
+#[test]
+fn garbage_is_refused_without_panicking() {
+    let mut dec = FrameDecoder::new();
+    let good = FrameEncoder::new(1).encode(
+        0,
+        0.0,
+        &FrameStats::default(),
+        &[],
+        &[body(0, "a", [1.0, 1.0])],
+        &Cloud::default().view(),
+    );
+    for cut in 0..good.len() {
+        assert!(
+            dec.apply(&good[..cut]).is_err(),
+            "a frame cut at {cut} was accepted"
+        );
+    }
+    let mut bad_version = good.clone();
+    bad_version[3] = 9;
+    assert_eq!(dec.apply(&bad_version), Err(DecodeError::Version(9)));
+    let mut huge_count = good[..HEADER_BYTES].to_vec();
+    huge_count.extend_from_slice(&[0xff, 0xff, 0xff, 0xff, 0x0f]);
+    assert!(matches!(
+        dec.apply(&huge_count),
+        Err(DecodeError::Malformed(_))
+    ));
+    dec.apply(&good).unwrap();
+}
