@@ -7,14 +7,18 @@
 //! them, so both find the same contacts in the same order whenever the margin covers how
 //! far bodies move while the solver runs. Pairs of two static bodies are never kept.
 
+use crate::geometry::grid::Grid;
 use serde::{Deserialize, Serialize};
 
 use super::body::Body;
 use crate::geometry::Aabb;
 
 /// How an interaction finds its candidate pairs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, strum::IntoStaticStr,
+)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum BroadPhase {
     /// Every pair of the two groups, every pass (the chapter).
     AllPairs,
@@ -27,12 +31,9 @@ pub enum BroadPhase {
 }
 
 impl BroadPhase {
+    /// The name scenes and settings use (as serde spells it).
     pub fn name(self) -> &'static str {
-        match self {
-            BroadPhase::AllPairs => "all_pairs",
-            BroadPhase::Sweep => "sweep",
-            BroadPhase::Grid => "grid",
-        }
+        self.into()
     }
 }
 
@@ -246,10 +247,8 @@ mod tests {
 /// of the static group.
 #[derive(Clone, Debug)]
 pub struct StaticGrid {
-    cell: f64,
-    cells: super::impulse::KeyMap<(i64, i64), Vec<u32>>,
-    /// Members too large for the grid (they would fill too many cells): always tested.
-    oversized: Vec<u32>,
+    /// Slots are positions in the group's member list.
+    grid: Grid,
     /// The world's layout revision the grid was built for.
     pub revision: u64,
 }
@@ -267,61 +266,18 @@ impl StaticGrid {
             .map(|&i| bodies[i as usize].shape.half_extents().max_element())
             .sum::<f64>()
             / members.len().max(1) as f64;
-        let cell = (2.0 * mean_half).max(1e-9);
-        let mut grid = StaticGrid {
-            cell,
-            cells: Default::default(),
-            oversized: Vec::new(),
-            revision,
-        };
+        let mut grid = Grid::new(2.0 * mean_half, MAX_CELLS_PER_MEMBER);
         for (slot, &i) in members.iter().enumerate() {
             let b = &bodies[i as usize];
             let Aabb { min, max } = Aabb::of(&b.shape, b.pos);
-            let (x0, y0, x1, y1) = grid.range(min, max);
-            if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > MAX_CELLS_PER_MEMBER {
-                grid.oversized.push(slot as u32);
-                continue;
-            }
-            for cx in x0..=x1 {
-                for cy in y0..=y1 {
-                    grid.cells.entry((cx, cy)).or_default().push(slot as u32);
-                }
-            }
+            grid.insert(slot as u32, min, max);
         }
-        grid
+        StaticGrid { grid, revision }
     }
 
-    fn range(&self, min: glam::DVec2, max: glam::DVec2) -> (i64, i64, i64, i64) {
-        let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
-        (c(min.x), c(min.y), c(max.x), c(max.y))
-    }
-
-    /// Slots of the members whose cells the box touches (unsorted, without repeats).
+    /// Slots of the members whose cells the box touches, in increasing order.
     fn query(&self, min: glam::DVec2, max: glam::DVec2, out: &mut Vec<u32>) {
-        let start = out.len();
-        let (x0, y0, x1, y1) = self.range(min, max);
-        if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > 4096 {
-            // A box larger than the grid's reach: every member is a candidate.
-            out.extend(self.cells.values().flatten().copied());
-        } else {
-            for cx in x0..=x1 {
-                for cy in y0..=y1 {
-                    if let Some(slots) = self.cells.get(&(cx, cy)) {
-                        out.extend_from_slice(slots);
-                    }
-                }
-            }
-        }
-        out.extend_from_slice(&self.oversized);
-        out[start..].sort_unstable();
-        let mut w = start;
-        for r in start..out.len() {
-            if r == start || out[r] != out[w - 1] {
-                out[w] = out[r];
-                w += 1;
-            }
-        }
-        out.truncate(w);
+        self.grid.query(min, max, out);
     }
 }
 

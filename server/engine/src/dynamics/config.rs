@@ -6,8 +6,11 @@ use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
 /// How positions and velocities advance over one step ("Movement").
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, strum::IntoStaticStr,
+)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum Integrator {
     /// Symplectic (semi-implicit) Euler: `v += a dt; p += v_new dt`. The chapter's choice.
     #[default]
@@ -17,17 +20,18 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// The name scenes and settings use (as serde spells it).
     pub fn name(self) -> &'static str {
-        match self {
-            Integrator::Symplectic => "symplectic",
-            Integrator::Explicit => "explicit",
-        }
+        self.into()
     }
 }
 
 /// How rigid collisions are resolved.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, strum::IntoStaticStr,
+)]
 #[serde(rename_all = "snake_case")]
+#[strum(serialize_all = "snake_case")]
 pub enum Solver {
     /// The chapter's relaxation: each interaction in turn runs up to
     /// `relaxation_iterations` passes of projection, friction and impulse.
@@ -40,11 +44,9 @@ pub enum Solver {
 }
 
 impl Solver {
+    /// The name scenes and settings use (as serde spells it).
     pub fn name(self) -> &'static str {
-        match self {
-            Solver::Relaxation => "relaxation",
-            Solver::Impulses => "impulses",
-        }
+        self.into()
     }
 }
 

@@ -35,9 +35,7 @@ pub const SPECULATIVE_GAP: f64 = 0.02;
 /// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
 
-/// A hash map keyed by small integers (rustc's Fx hash). Only lookups use it, never
-/// iteration order, so results stay deterministic.
-pub type KeyMap<K, V> = rustc_hash::FxHashMap<K, V>;
+pub use crate::geometry::grid::KeyMap;
 
 /// The solver's settings for one frame.
 #[derive(Clone, Copy, Debug)]

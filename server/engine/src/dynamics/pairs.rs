@@ -19,6 +19,7 @@ use glam::DVec2;
 
 use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
+use crate::geometry::grid::{Cells, Grid};
 use crate::geometry::Aabb;
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
@@ -44,16 +45,8 @@ impl Pair {
     }
 }
 
-/// Where a body sits in the grid.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Place {
-    /// Not in any resolving interaction.
-    Absent,
-    /// In the cells `x0..=x1, y0..=y1`.
-    Cells(i64, i64, i64, i64),
-    /// Too large for the grid: tested against every moving body.
-    Oversized,
-}
+/// Where a body sits in the grid: `None` when it is in no resolving interaction.
+type Place = Option<Cells>;
 
 #[derive(Clone, Copy, Debug)]
 struct Fat {
@@ -72,10 +65,8 @@ const MAX_CELLS: i64 = 64;
 pub struct PairSet {
     /// The world layout revision the set was built for.
     revision: Option<u64>,
-    cell: f64,
     fat: Vec<Fat>,
-    cells: KeyMap<(i64, i64), Vec<u32>>,
-    oversized: Vec<u32>,
+    grid: Grid,
     /// Which group pairs resolve (row-major, `groups x groups`).
     resolves: Vec<bool>,
     groups: usize,
@@ -123,7 +114,7 @@ impl PairSet {
         for &i in movers {
             let body = &bodies[i as usize];
             let f = self.fat[i as usize];
-            if f.place == Place::Absent {
+            if f.place.is_none() {
                 continue;
             }
             let r = reach(body, dt);
@@ -197,7 +188,7 @@ impl PairSet {
                 .collect();
             (!halves.is_empty()).then(|| halves.iter().sum::<f64>() / halves.len() as f64)
         };
-        self.cell = mean_half(&|b| !fixed(b))
+        let cell = mean_half(&|b| !fixed(b))
             .or_else(|| mean_half(&|_| true))
             .map_or(1.0, |h| (4.0 * h).max(1e-9));
         let play: Vec<bool> = bodies.iter().map(in_play).collect();
@@ -205,11 +196,10 @@ impl PairSet {
         self.fat.extend(bodies.iter().map(|b| Fat {
             min: DVec2::ZERO,
             max: DVec2::ZERO,
-            place: Place::Absent,
+            place: None,
             key: b.key.0,
         }));
-        self.cells.clear();
-        self.oversized.clear();
+        self.grid = Grid::new(cell, MAX_CELLS);
         for (i, &p) in play.iter().enumerate() {
             if p {
                 self.place(bodies, i as u32, dt);
@@ -246,19 +236,7 @@ impl PairSet {
             2.0 * body.vel.length() * dt + 0.25 * body.shape.half_extents().max_element()
         };
         let (min, max) = (min - m, max + m);
-        let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
-        let (x0, y0, x1, y1) = (c(min.x), c(min.y), c(max.x), c(max.y));
-        let place = if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > MAX_CELLS {
-            self.oversized.push(i);
-            Place::Oversized
-        } else {
-            for cx in x0..=x1 {
-                for cy in y0..=y1 {
-                    self.cells.entry((cx, cy)).or_default().push(i);
-                }
-            }
-            Place::Cells(x0, y0, x1, y1)
-        };
+        let place = Some(self.grid.insert(i, min, max));
         self.fat[i as usize] = Fat {
             min,
             max,
@@ -268,23 +246,8 @@ impl PairSet {
     }
 
     fn remove_from_cells(&mut self, i: u32) {
-        match self.fat[i as usize].place {
-            Place::Absent => {}
-            Place::Oversized => self.oversized.retain(|&j| j != i),
-            Place::Cells(x0, y0, x1, y1) => {
-                for cx in x0..=x1 {
-                    for cy in y0..=y1 {
-                        if let Some(list) = self.cells.get_mut(&(cx, cy)) {
-                            if let Some(k) = list.iter().position(|&j| j == i) {
-                                list.swap_remove(k);
-                            }
-                            if list.is_empty() {
-                                self.cells.remove(&(cx, cy));
-                            }
-                        }
-                    }
-                }
-            }
+        if let Some(place) = self.fat[i as usize].place {
+            self.grid.remove(i, place);
         }
     }
 
@@ -305,24 +268,14 @@ impl PairSet {
         };
         let mut found = std::mem::take(&mut self.found);
         match fi.place {
-            Place::Absent => {}
-            Place::Cells(x0, y0, x1, y1) => {
-                for cx in x0..=x1 {
-                    for cy in y0..=y1 {
-                        if let Some(list) = self.cells.get(&(cx, cy)) {
-                            for &j in list {
-                                push(self, &mut found, j);
-                            }
-                        }
-                    }
-                }
-                for &j in &self.oversized {
-                    push(self, &mut found, j);
-                }
+            None => {}
+            Some(Cells::Range(x0, y0, x1, y1)) => {
+                self.grid
+                    .visit((x0, y0, x1, y1), |j| push(self, &mut found, j));
             }
-            Place::Oversized => {
+            Some(Cells::Oversized) => {
                 for j in 0..self.fat.len() as u32 {
-                    if self.fat[j as usize].place != Place::Absent {
+                    if self.fat[j as usize].place.is_some() {
                         push(self, &mut found, j);
                     }
                 }

@@ -153,6 +153,33 @@ mod tests {
     use super::*;
 
     #[test]
+    fn enum_names_are_serdes_names() {
+        let json = |v: &dyn erased::Named| v.json();
+        for (name, text) in [
+            (BroadPhase::AllPairs.name(), json(&BroadPhase::AllPairs)),
+            (BroadPhase::Sweep.name(), json(&BroadPhase::Sweep)),
+            (BroadPhase::Grid.name(), json(&BroadPhase::Grid)),
+            (Solver::Relaxation.name(), json(&Solver::Relaxation)),
+            (Solver::Impulses.name(), json(&Solver::Impulses)),
+            (Integrator::Symplectic.name(), json(&Integrator::Symplectic)),
+            (Integrator::Explicit.name(), json(&Integrator::Explicit)),
+        ] {
+            assert_eq!(format!("\"{name}\""), text);
+        }
+    }
+
+    mod erased {
+        pub trait Named {
+            fn json(&self) -> String;
+        }
+        impl<T: serde::Serialize> Named for T {
+            fn json(&self) -> String {
+                serde_json::to_string(self).unwrap()
+            }
+        }
+    }
+
+    #[test]
     fn every_field_has_a_setting_that_reads_back() {
         let config = WorldConfig::default();
         let settings = config.settings();
