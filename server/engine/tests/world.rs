@@ -598,3 +598,41 @@ fn solver_passes_are_counted_as_they_run() {
     w.step();
     assert_eq!(w.stats().relaxation_iterations, 1, "{:?}", w.stats());
 }
+
+#[test]
+fn bodies_are_found_by_id_and_selection_after_others_are_removed() {
+    let mut w = asset("bounds.toml");
+    let a = w
+        .apply(&Action::SpawnDumbMinion { at: [40.0, 40.0] })
+        .unwrap()
+        .ids;
+    let b = w
+        .apply(&Action::SpawnDumbMinion { at: [160.0, 40.0] })
+        .unwrap()
+        .ids;
+    w.apply(&Action::Select {
+        at: [160.0, 40.0],
+        group: Some("dumb_minions".into()),
+    })
+    .unwrap();
+    assert_eq!(w.selected(), Some(b[0].as_str()));
+    // Removing bodies moves the rest in the store; handles follow them.
+    w.apply(&Action::Clear {
+        group: "dumb_minions".into(),
+    })
+    .unwrap();
+    assert!(w.body(&a[0]).is_none() && w.body(&b[0]).is_none());
+    assert_eq!(w.selected(), None);
+    let c = w
+        .apply(&Action::SpawnDumbMinion { at: [100.0, 40.0] })
+        .unwrap()
+        .ids;
+    for body in w.bodies() {
+        assert_eq!(w.body(&body.id).map(|b| b.key), Some(body.key));
+        assert_eq!(
+            w.body_by_key(body.key).map(|b| b.id.as_str()),
+            Some(body.id.as_str())
+        );
+    }
+    assert_eq!(w.body(&c[0]).unwrap().pos, DVec2::new(100.0, 40.0));
+}

@@ -139,11 +139,8 @@ impl World {
             Action::Drag { to } => {
                 let to = point("to", *to)?;
                 let key = self.selected.ok_or(ActionError::NothingSelected)?;
-                let body = self
-                    .bodies
-                    .iter_mut()
-                    .find(|b| b.key == key)
-                    .ok_or(ActionError::NothingSelected)?;
+                let &i = self.by_key.get(&key).ok_or(ActionError::NothingSelected)?;
+                let body = &mut self.bodies[i as usize];
                 body.pos = to;
                 body.vel = DVec2::ZERO;
                 if body.is_static() && body.asleep.is_none() {

@@ -13,6 +13,7 @@
 //! `step` (the pipeline), `candidates` (which broad phase yields a group pair's
 //! candidates), `demo` (the chapter demo's behaviours), `actions` (what clients do).
 
+use crate::geometry::grid::KeyMap;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -135,7 +136,10 @@ pub struct World {
     solver_pairs: Vec<Pair>,
     solver_buffers: SolverBuffers,
     /// Every body's id, to refuse duplicates without a scan.
-    ids: std::collections::HashSet<String>,
+    /// Where each body is in `bodies`, by id and by key: O(1) handles, rebuilt when
+    /// bodies are removed (which moves the ones after them).
+    by_id: KeyMap<String, u32>,
+    by_key: KeyMap<BodyKey, u32>,
     /// Bodies asleep after the last step.
     sleeping: u64,
 }
@@ -171,7 +175,8 @@ impl World {
             pair_set: PairSet::default(),
             solver_pairs: Vec::new(),
             solver_buffers: SolverBuffers::default(),
-            ids: Default::default(),
+            by_id: Default::default(),
+            by_key: Default::default(),
             sleeping: 0,
         }
     }
@@ -218,7 +223,12 @@ impl World {
     }
 
     pub fn body(&self, id: &str) -> Option<&Body> {
-        self.bodies.iter().find(|b| b.id == id)
+        self.by_id.get(id).map(|&i| &self.bodies[i as usize])
+    }
+
+    /// The body with this key.
+    pub fn body_by_key(&self, key: BodyKey) -> Option<&Body> {
+        self.by_key.get(&key).map(|&i| &self.bodies[i as usize])
     }
 
     pub fn group_name(&self, group: GroupId) -> &str {
@@ -245,11 +255,7 @@ impl World {
 
     /// The selected body's id.
     pub fn selected(&self) -> Option<&str> {
-        let key = self.selected?;
-        self.bodies
-            .iter()
-            .find(|b| b.key == key)
-            .map(|b| b.id.as_str())
+        self.body_by_key(self.selected?).map(|b| b.id.as_str())
     }
 
     /// Total kinetic energy of the rigid bodies.

@@ -28,14 +28,15 @@ impl World {
             id: def.id.clone(),
             source,
         })?;
-        if self.ids.contains(&def.id) {
+        if self.by_id.contains_key(&def.id) {
             return Err(WorldError::DuplicateId(def.id));
         }
-        self.ids.insert(def.id.clone());
         let group = self.group_or_insert(&def.group);
         let key = BodyKey(self.next_key);
         self.next_key += 1;
         let index = self.bodies.len() as u32;
+        self.by_id.insert(def.id.clone(), index);
+        self.by_key.insert(key, index);
         if def.mass == 0.0 {
             self.statics_revision += 1;
         }
@@ -124,7 +125,7 @@ impl World {
         loop {
             self.spawned += 1;
             let id = format!("{prefix}-{}", self.spawned);
-            if !self.ids.contains(&id) {
+            if !self.by_id.contains_key(&id) {
                 return id;
             }
         }
@@ -140,9 +141,6 @@ impl World {
             self.statics_revision += 1;
         }
         let before = self.bodies.len();
-        for b in self.bodies.iter().filter(|b| remove(b)) {
-            self.ids.remove(&b.id);
-        }
         self.bodies.retain(|b| !remove(b));
         if self.bodies.len() != before {
             self.layout_revision += 1;
@@ -150,14 +148,20 @@ impl World {
         }
     }
 
+    /// Rebuilds every index into `bodies`: groups, the lists a step walks, and the
+    /// handles by id and by key.
     pub(super) fn rebuild_groups(&mut self) {
         for g in &mut self.groups {
             g.members.clear();
         }
+        self.by_id.clear();
+        self.by_key.clear();
         self.movers.clear();
         self.behaving.clear();
         self.flagged.clear();
         for (i, b) in self.bodies.iter().enumerate() {
+            self.by_id.insert(b.id.clone(), i as u32);
+            self.by_key.insert(b.key, i as u32);
             self.groups[b.group as usize].members.push(i as u32);
             if !b.is_static() {
                 self.movers.push(i as u32);
