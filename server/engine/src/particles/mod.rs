@@ -6,6 +6,7 @@
 
 pub mod emitter;
 pub mod preset;
+pub mod shapes;
 pub mod system;
 
 pub use emitter::Emitter;
