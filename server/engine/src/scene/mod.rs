@@ -34,15 +34,18 @@
 use std::path::{Path, PathBuf};
 
 use glam::{DVec2, Vec2, Vec4};
-use serde::Deserialize;
-use toml::Spanned;
 
 use crate::behavior::{self, Behavior, Held};
 use crate::dynamics::body::BodyDef;
-use crate::dynamics::config::WorldConfig;
 use crate::geometry::Shape;
-use crate::particles::{ParticleDef, ParticlePreset};
+use crate::particles::ParticleDef;
 use crate::world::World;
+
+mod generate;
+mod raw;
+
+use generate::generate;
+use raw::*;
 
 /// A refused scene: where and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -54,195 +57,6 @@ pub struct SceneError {
     /// The field at fault, with its table: `body[2].radius`, `world.dt`.
     pub field: String,
     pub message: String,
-}
-
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SceneFile {
-    #[serde(default)]
-    world: Option<Spanned<WorldConfig>>,
-    #[serde(default)]
-    preset: std::collections::BTreeMap<String, Spanned<ParticlePreset>>,
-    #[serde(default)]
-    body: Vec<Spanned<RawBody>>,
-    #[serde(default)]
-    generate: Vec<Spanned<RawGenerator>>,
-    #[serde(default)]
-    particle: Vec<Spanned<RawParticle>>,
-    #[serde(default)]
-    emitter: Vec<Spanned<RawEmitter>>,
-    #[serde(default)]
-    interact: Vec<Spanned<RawInteraction>>,
-}
-
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(rename_all = "snake_case")]
-enum ShapeKind {
-    Rect,
-    Circle,
-}
-
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(rename_all = "snake_case")]
-enum BehaviorKind {
-    None,
-    Hero,
-    Minion,
-    DumbMinion,
-}
-
-/// The body fields shared by `[[body]]` and `[[generate]]`.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawBody {
-    #[serde(default)]
-    id: Option<String>,
-    #[serde(default = "default_group")]
-    group: String,
-    shape: ShapeKind,
-    #[serde(default)]
-    size: Option<[f64; 2]>,
-    #[serde(default)]
-    radius: Option<f64>,
-    #[serde(default)]
-    pos: [f64; 2],
-    #[serde(default)]
-    vel: [f64; 2],
-    #[serde(default = "default_mass")]
-    mass: f64,
-    #[serde(default = "default_restitution")]
-    restitution: f64,
-    #[serde(default = "default_friction")]
-    friction: f64,
-    #[serde(default)]
-    gravity: Option<[f64; 2]>,
-    #[serde(default)]
-    behavior: Option<BehaviorKind>,
-}
-
-fn default_group() -> String {
-    "default".into()
-}
-fn default_mass() -> f64 {
-    1.0
-}
-fn default_restitution() -> f64 {
-    0.8
-}
-fn default_friction() -> f64 {
-    0.3
-}
-
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(rename_all = "snake_case")]
-enum GeneratorKind {
-    /// `count` bodies from `start`, each `step` from the previous.
-    Row,
-    /// `cols` x `rows` bodies from `start`, `step[0]` apart on x and `step[1]` on y.
-    Grid,
-    /// `count` bodies stacked upward, the lowest resting its bottom on `base`.
-    Stack,
-    /// `levels` rows, `levels` bodies wide at the bottom and one at the top, centred on
-    /// `base` with their bottom on it.
-    Pyramid,
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawGenerator {
-    kind: GeneratorKind,
-    id: String,
-    #[serde(default = "default_group")]
-    group: String,
-    shape: ShapeKind,
-    #[serde(default)]
-    size: Option<[f64; 2]>,
-    #[serde(default)]
-    radius: Option<f64>,
-    #[serde(default)]
-    start: [f64; 2],
-    #[serde(default)]
-    step: Option<[f64; 2]>,
-    #[serde(default)]
-    base: [f64; 2],
-    #[serde(default)]
-    count: Option<u32>,
-    #[serde(default)]
-    cols: Option<u32>,
-    #[serde(default)]
-    rows: Option<u32>,
-    #[serde(default)]
-    levels: Option<u32>,
-    /// Space between neighbours of a stack or pyramid.
-    #[serde(default)]
-    gap: f64,
-    #[serde(default)]
-    vel: [f64; 2],
-    #[serde(default = "default_mass")]
-    mass: f64,
-    #[serde(default = "default_restitution")]
-    restitution: f64,
-    #[serde(default = "default_friction")]
-    friction: f64,
-    #[serde(default)]
-    gravity: Option<[f64; 2]>,
-    #[serde(default)]
-    behavior: Option<BehaviorKind>,
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawParticle {
-    pos: [f32; 2],
-    #[serde(default)]
-    vel: [f32; 2],
-    life: f32,
-    #[serde(default = "default_particle_size")]
-    size: f32,
-    #[serde(default = "default_color")]
-    color: [f32; 4],
-    #[serde(default)]
-    final_color: Option<[f32; 4]>,
-    #[serde(default = "default_size_delta")]
-    size_delta: f32,
-    #[serde(default = "default_drag")]
-    drag: f32,
-    #[serde(default)]
-    gravity: Option<[f32; 2]>,
-}
-
-fn default_particle_size() -> f32 {
-    1.0
-}
-fn default_color() -> [f32; 4] {
-    [1.0, 1.0, 1.0, 1.0]
-}
-fn default_size_delta() -> f32 {
-    1.0
-}
-fn default_drag() -> f32 {
-    0.95
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawEmitter {
-    preset: String,
-    count: u32,
-    pos: [f32; 2],
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RawInteraction {
-    a: String,
-    b: String,
-    #[serde(default = "default_true")]
-    resolve: bool,
-}
-
-fn default_true() -> bool {
-    true
 }
 
 /// Reads and builds a scene file.
@@ -450,87 +264,6 @@ fn behavior_of(kind: Option<BehaviorKind>, vel: DVec2) -> Behavior {
         },
         Some(BehaviorKind::DumbMinion) => Behavior::DumbMinion,
     }
-}
-
-/// The largest number of bodies one generator may make.
-const MAX_GENERATED: u64 = 10_000_000;
-
-fn generate(g: &RawGenerator, shape: Shape) -> Result<Vec<DVec2>, (&'static str, String)> {
-    let need = |field: &'static str, v: Option<u32>| {
-        v.ok_or((
-            field,
-            format!("a {:?} generator needs `{field}`", g.kind).to_lowercase(),
-        ))
-    };
-    let size = shape.size();
-    let finite = |field: &'static str, v: [f64; 2]| {
-        if DVec2::from(v).is_finite() {
-            Ok(DVec2::from(v))
-        } else {
-            Err((field, "is not finite".to_string()))
-        }
-    };
-    if !g.gap.is_finite() {
-        return Err(("gap", "is not finite".into()));
-    }
-    let count_check = |n: u64| {
-        if n > MAX_GENERATED {
-            Err(("count", format!("{n} bodies is more than {MAX_GENERATED}")))
-        } else {
-            Ok(())
-        }
-    };
-    let mut out = Vec::new();
-    match g.kind {
-        GeneratorKind::Row => {
-            let (start, step) = (
-                finite("start", g.start)?,
-                finite(
-                    "step",
-                    g.step
-                        .ok_or(("step", "a row generator needs `step`".to_string()))?,
-                )?,
-            );
-            let n = need("count", g.count)?;
-            count_check(n as u64)?;
-            out.extend((0..n).map(|k| start + step * k as f64));
-        }
-        GeneratorKind::Grid => {
-            let (start, step) = (
-                finite("start", g.start)?,
-                finite("step", g.step.unwrap_or([size.x, size.y]))?,
-            );
-            let (cols, rows) = (need("cols", g.cols)?, need("rows", g.rows)?);
-            count_check(cols as u64 * rows as u64)?;
-            for r in 0..rows {
-                for c in 0..cols {
-                    out.push(start + DVec2::new(c as f64 * step.x, r as f64 * step.y));
-                }
-            }
-        }
-        GeneratorKind::Stack => {
-            let base = finite("base", g.base)?;
-            let n = need("count", g.count)?;
-            count_check(n as u64)?;
-            out.extend(
-                (0..n).map(|k| base + DVec2::new(0.0, size.y * 0.5 + k as f64 * (size.y + g.gap))),
-            );
-        }
-        GeneratorKind::Pyramid => {
-            let base = finite("base", g.base)?;
-            let levels = need("levels", g.levels)?;
-            count_check(levels as u64 * (levels as u64 + 1) / 2)?;
-            for level in 0..levels {
-                let n = levels - level;
-                let y = base.y + size.y * 0.5 + level as f64 * (size.y + g.gap);
-                for i in 0..n {
-                    let x = base.x + (i as f64 - (n - 1) as f64 * 0.5) * (size.x + g.gap);
-                    out.push(DVec2::new(x, y));
-                }
-            }
-        }
-    }
-    Ok(out)
 }
 
 /// The scene's text and name, for locating errors.
