@@ -1,5 +1,10 @@
 //! `ricochet-viewer`: subscribes to a Ricochet world over zenoh and logs it to Rerun.
 //!
+//! In: frames, snapshots and events of one world (zenoh). Out: Rerun entities (bounds,
+//! bodies, particles, emitters, the step's figures, the commands applied), to the web
+//! viewer it serves, a native viewer, a running viewer or an .rrd file. `sink` turns
+//! decoded state into Rerun logs, `draw` builds the shapes, `blueprint` lays out the view.
+//!
 //! Frames are delta-encoded, so every frame that arrives is decoded (cheap); drawing is
 //! what costs, so each pass of the loop draws only the newest state (at most `--fps` times
 //! a second) and logs the figures of every frame it decoded. When Rerun is slower than the world, frames are skipped, never

@@ -1,5 +1,10 @@
 //! The binary frame: one per step on `ricochet/<world>/frame`, and the statics snapshot.
 //!
+//! In (encoder): views of a world's bodies and particles, step by step. Out: bytes. In
+//! (decoder): bytes from anyone. Out: what a receiver knows of the world, or a refusal
+//! that leaves it as it was. Files: `wire` (varints, the bounds-checked reader),
+//! `records` (the delta tracking both sides share), `encode`, `decode`.
+//!
 //! A frame carries what changed since the previous frame; every `keyframe_interval`
 //! frames (and after a reset) a key frame carries everything, so a receiver that joins
 //! late or misses a frame is whole again at the next key frame. Static bodies are never in
