@@ -198,10 +198,24 @@ fn main() -> Result<()> {
                     if tradeoff::on_front(c, &cells) { "  front" } else { "" }
                 );
             }
+            let readme = out.join("README.md");
+            if readme.exists() {
+                bench::splice(
+                    &readme,
+                    "tradeoff",
+                    &format!(
+                        "Measured by `ricochet-server tradeoff --out {}` on {}.\n\n{}",
+                        out.display(),
+                        bench::machine(),
+                        tradeoff::to_markdown(&cells)
+                    ),
+                )?;
+            }
             eprintln!(
-                "wrote {} and {}",
+                "wrote {}, {} and the table of {}",
                 out.join("tradeoff.csv").display(),
-                out.join("tradeoff.png").display()
+                out.join("tradeoff.png").display(),
+                readme.display()
             );
             Ok(())
         }
