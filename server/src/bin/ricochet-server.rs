@@ -19,7 +19,7 @@ use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, Mode, NetworkArgs};
 use ricochet_protocol::world::{self as wire, write_frame};
 use ricochet_server::host::{self, HostOptions};
-use ricochet_server::report::{bench, tradeoff};
+use ricochet_server::report::{self, bench, tradeoff};
 
 #[derive(Parser)]
 #[command(
@@ -200,13 +200,13 @@ fn main() -> Result<()> {
             }
             let readme = out.join("README.md");
             if readme.exists() {
-                bench::splice(
+                report::splice(
                     &readme,
                     "tradeoff",
                     &format!(
                         "Measured by `ricochet-server tradeoff --out {}` on {}.\n\n{}",
                         out.display(),
-                        bench::machine(),
+                        report::machine(),
                         tradeoff::to_markdown(&cells)
                     ),
                 )?;
@@ -290,12 +290,12 @@ fn run_bench(
             .chain(std::env::args().skip(1))
             .collect::<Vec<_>>()
             .join(" ");
-        bench::splice(
+        report::splice(
             &readme,
             "bench",
             &format!(
                 "Measured by `{command}` on {}.\n\n{table}",
-                bench::machine()
+                report::machine()
             ),
         )?;
         eprintln!(

@@ -2,7 +2,66 @@
 //! (tables, CSV, charts) flow out. Nothing here is on the server's hot path.
 //!
 //! - [`bench`]: what a step costs, per case and setting;
-//! - [`tradeoff`]: what each solver setting costs and buys in accuracy.
+//! - [`tradeoff`]: what each solver setting costs and buys in accuracy;
+//! - [`splice`]: how a run writes its table into a hand-written page.
 
 pub mod bench;
 pub mod tradeoff;
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+/// Replaces what lies between `<!-- NAME:begin -->` and `<!-- NAME:end -->` in the file
+/// at `path` by `content`: the generated part of a hand-written page.
+pub fn splice(path: &Path, name: &str, content: &str) -> Result<()> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let (begin, end) = (
+        format!("<!-- {name}:begin -->"),
+        format!("<!-- {name}:end -->"),
+    );
+    let (Some(a), Some(b)) = (text.find(&begin), text.find(&end)) else {
+        anyhow::bail!("{} has no {begin} ... {end} markers", path.display());
+    };
+    anyhow::ensure!(a < b, "{}: {end} comes before {begin}", path.display());
+    let spliced = format!("{}{begin}\n{content}{}", &text[..a], &text[b..]);
+    std::fs::write(path, spliced).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The machine the figures were taken on, in one line.
+pub fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    format!("{cores} cores ({cpu}), one thread used")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splice_replaces_only_between_the_markers() {
+        let dir = tempfile::tempdir().unwrap();
+        let page = dir.path().join("page.md");
+        std::fs::write(
+            &page,
+            "intro\n<!-- t:begin -->\nold\n<!-- t:end -->\noutro\n",
+        )
+        .unwrap();
+        splice(&page, "t", "new\n").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&page).unwrap(),
+            "intro\n<!-- t:begin -->\nnew\n<!-- t:end -->\noutro\n"
+        );
+        assert!(splice(&page, "u", "x").is_err());
+    }
+}
