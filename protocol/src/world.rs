@@ -6,16 +6,16 @@ use std::io::Write;
 
 use ricochet_engine::dynamics::Body;
 use ricochet_engine::geometry::Shape;
-use ricochet_engine::world::World;
+use ricochet_engine::world::{BodyInfo, World};
 
 use crate::dump::{BodyRecord, FrameRecord, ParticleRecord, StatsRecord};
 use crate::frame::{encode_statics, BodyIn, EmitterIn, FrameEncoder, FrameStats, ParticlesIn};
 
-fn body_in<'a>(world: &'a World, b: &'a Body) -> BodyIn<'a> {
+fn body_in<'a>(world: &'a World, b: &'a Body, info: &'a BodyInfo) -> BodyIn<'a> {
     let size = b.shape.size();
     BodyIn {
         key: b.key.0,
-        id: &b.id,
+        id: &info.id,
         group: world.group_name(b.group),
         circle: matches!(b.shape, Shape::Circle { .. }),
         size: [size.x, size.y],
@@ -30,8 +30,9 @@ pub fn statics_snapshot(world: &World) -> Vec<u8> {
     let statics: Vec<BodyIn> = world
         .bodies()
         .iter()
-        .filter(|b| b.is_static())
-        .map(|b| body_in(world, b))
+        .zip(world.infos())
+        .filter(|(b, _)| b.is_static())
+        .map(|(b, info)| body_in(world, b, info))
         .collect();
     encode_statics(world.frame(), world.time(), &statics)
 }
@@ -49,8 +50,9 @@ pub fn encode_frame(
     let bodies: Vec<BodyIn> = world
         .bodies()
         .iter()
-        .filter(|b| !b.is_static())
-        .map(|b| body_in(world, b))
+        .zip(world.infos())
+        .filter(|(b, _)| !b.is_static())
+        .map(|(b, info)| body_in(world, b, info))
         .collect();
     let emitters: Vec<EmitterIn> = world
         .emitters()
@@ -104,8 +106,9 @@ pub fn frame_record(world: &World) -> FrameRecord {
         bodies: world
             .bodies()
             .iter()
-            .map(|b| BodyRecord {
-                id: b.id.clone(),
+            .zip(world.infos())
+            .map(|(b, info)| BodyRecord {
+                id: info.id.clone(),
                 x: b.pos.x,
                 y: b.pos.y,
                 vx: b.vel.x,

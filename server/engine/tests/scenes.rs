@@ -54,7 +54,7 @@ gap = 0.5
 "#,
     )
     .unwrap();
-    let ids: Vec<&str> = w.bodies().iter().map(|b| b.id.as_str()).collect();
+    let ids: Vec<&str> = w.infos().iter().map(|b| b.id.as_str()).collect();
     assert_eq!(ids, ["p/0", "p/1", "p/2", "p/3", "p/4", "p/5"]);
     // Bottom row of 3 centred on x = 10, 2.5 apart; the top one at the centre.
     assert_eq!(w.body("p/0").unwrap().pos, DVec2::new(7.5, 0.5));

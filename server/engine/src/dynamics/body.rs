@@ -132,9 +132,10 @@ impl BodyDef {
     }
 }
 
-/// One body as the solver sees it. Kept small: the relaxation loop touches these fields
-/// for every pair it tests.
-#[derive(Clone, Debug)]
+/// One body as the solver sees it: the hot data every pass streams through, nothing else.
+/// What only users and the demo read (the body's id and behaviour) lives apart, in
+/// [`crate::world::BodyInfo`], at the same index.
+#[derive(Clone, Copy, Debug)]
 pub struct Body {
     pub pos: DVec2,
     pub vel: DVec2,
@@ -147,8 +148,6 @@ pub struct Body {
     pub gravity: Option<DVec2>,
     pub group: GroupId,
     pub key: BodyKey,
-    pub behavior: Behavior,
-    pub id: String,
     /// Seconds the body has moved slower than the world's `sleep_speed`.
     pub rest_time: f64,
     /// Set while the body sleeps (see [`crate::dynamics::sleep`]).
@@ -189,8 +188,6 @@ impl Body {
             gravity: None,
             group: 0,
             key: BodyKey(0),
-            behavior: Behavior::None,
-            id: String::new(),
             rest_time: 0.0,
             asleep: None,
         }

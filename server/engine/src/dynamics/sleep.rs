@@ -9,7 +9,6 @@
 //! parameters wake everything.
 
 use super::body::{Body, Sleeper};
-use crate::behavior::Behavior;
 use crate::geometry::separation;
 
 /// Sleepers become static for the step: their inverse mass is set aside.
@@ -51,11 +50,14 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
 }
 
 /// Updates rest times and puts islands to sleep or wakes them. `pairs` are candidate
-/// pairs of the step (body indices); those touching join islands. Returns how many bodies
+/// pairs of the step (body indices); those touching join islands; `may_sleep` says which
+/// bodies may rest at all (the demo's steered bodies never do). Returns how many bodies
 /// sleep now.
+#[allow(clippy::too_many_arguments)]
 pub fn update(
     bodies: &mut [Body],
     movers: &[u32],
+    may_sleep: impl Fn(usize) -> bool,
     pairs: &[(u32, u32)],
     dt: f64,
     speed: f64,
@@ -66,8 +68,7 @@ pub fn update(
         if b.asleep.is_some() {
             continue;
         }
-        let may_sleep = matches!(b.behavior, Behavior::None | Behavior::DumbMinion);
-        b.rest_time = if may_sleep && b.vel.length() < speed {
+        b.rest_time = if may_sleep(i as usize) && b.vel.length() < speed {
             b.rest_time + dt
         } else {
             0.0

@@ -45,7 +45,7 @@ impl World {
             Action::Press { dir } | Action::Release { dir } => {
                 let pressed = matches!(action, Action::Press { .. });
                 let hero = self
-                    .bodies
+                    .infos
                     .iter_mut()
                     .find_map(|b| match &mut b.behavior {
                         Behavior::Hero { held } => Some(held),
@@ -125,15 +125,15 @@ impl World {
                     None => None,
                 };
                 // The last body drawn over the point wins: the one on top.
-                let hit = self
-                    .bodies
-                    .iter()
-                    .rev()
-                    .filter(|b| group.map_or(!b.is_static(), |g| b.group == g))
-                    .find(|b| b.shape.contains(b.pos, at) || b.pos == at);
-                self.selected = hit.map(|b| b.key);
+                let hit = self.bodies.iter().rposition(|b| {
+                    group.map_or(!b.is_static(), |g| b.group == g)
+                        && (b.shape.contains(b.pos, at) || b.pos == at)
+                });
+                self.selected = hit.map(|i| self.bodies[i].key);
                 Ok(ActionOutcome {
-                    ids: hit.map(|b| vec![b.id.clone()]).unwrap_or_default(),
+                    ids: hit
+                        .map(|i| vec![self.infos[i].id.clone()])
+                        .unwrap_or_default(),
                 })
             }
             Action::Drag { to } => {
@@ -148,7 +148,7 @@ impl World {
                     self.statics_revision += 1;
                 }
                 Ok(ActionOutcome {
-                    ids: vec![body.id.clone()],
+                    ids: vec![self.infos[i as usize].id.clone()],
                 })
             }
             Action::Deselect => {
@@ -164,14 +164,14 @@ impl World {
                     });
                 }
                 let mut ids = Vec::new();
-                for b in &mut self.bodies {
-                    if matches!(b.behavior, Behavior::DumbMinion) && !b.is_static() {
+                for (b, info) in self.bodies.iter_mut().zip(&self.infos) {
+                    if matches!(info.behavior, Behavior::DumbMinion) && !b.is_static() {
                         let kick = DVec2::new(
                             self.rng.random_range(-1.0..=1.0),
                             self.rng.random_range(-1.0..=1.0),
                         );
                         b.vel += kick * s;
-                        ids.push(b.id.clone());
+                        ids.push(info.id.clone());
                     }
                 }
                 Ok(ActionOutcome { ids })
@@ -183,10 +183,11 @@ impl World {
                 let ids = self
                     .bodies
                     .iter()
-                    .filter(|b| b.group == g)
-                    .map(|b| b.id.clone())
+                    .zip(&self.infos)
+                    .filter(|(b, _)| b.group == g)
+                    .map(|(_, info)| info.id.clone())
                     .collect();
-                self.remove_bodies(|b| b.group == g);
+                self.remove_bodies(|b, _| b.group == g);
                 Ok(ActionOutcome { ids })
             }
             Action::SpawnParticles { preset, at, count } => {

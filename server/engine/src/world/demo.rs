@@ -16,7 +16,7 @@ impl World {
         self.behaving
             .iter()
             .map(|&i| i as usize)
-            .find(|&i| matches!(self.bodies[i].behavior, Behavior::Hero { .. }))
+            .find(|&i| matches!(self.infos[i].behavior, Behavior::Hero { .. }))
     }
 
     pub(super) fn hero_pos(&self) -> Option<DVec2> {
@@ -30,7 +30,7 @@ impl World {
         for &i in &self.behaving {
             let b = &mut self.bodies[i as usize];
             let movable = !b.is_static();
-            match &mut b.behavior {
+            match &mut self.infos[i as usize].behavior {
                 Behavior::None | Behavior::DumbMinion => {}
                 Behavior::Hero { held } => {
                     if movable {
@@ -59,7 +59,9 @@ impl World {
             }
         }
         if expired_packs {
-            self.remove_bodies(|b| matches!(b.behavior, Behavior::DyePack { life: 0, .. }));
+            self.remove_bodies(|_, info| {
+                matches!(info.behavior, Behavior::DyePack { life: 0, .. })
+            });
         }
     }
 
@@ -72,8 +74,9 @@ impl World {
         let hits: Vec<BodyKey> = self
             .behaving
             .iter()
-            .map(|&i| &self.bodies[i as usize])
-            .filter(|b| matches!(b.behavior, Behavior::DyePack { .. }))
+            .map(|&i| i as usize)
+            .filter(|&i| matches!(self.infos[i].behavior, Behavior::DyePack { .. }))
+            .map(|i| &self.bodies[i])
             .filter(|b| collide(&hero_shape, hero_pos, &b.shape, b.pos).is_some())
             .map(|b| b.key)
             .collect();
@@ -81,12 +84,7 @@ impl World {
             return;
         }
         for key in &hits {
-            let pos = self
-                .bodies
-                .iter()
-                .find(|b| b.key == *key)
-                .expect("hit is alive")
-                .pos;
+            let pos = self.body_by_key(*key).expect("hit is alive").pos;
             if self
                 .presets
                 .get(behavior::DYE_PACK_EXPLOSION_PRESET)
@@ -99,6 +97,6 @@ impl World {
                 });
             }
         }
-        self.remove_bodies(|b| hits.contains(&b.key));
+        self.remove_bodies(|b, _| hits.contains(&b.key));
     }
 }

@@ -17,6 +17,7 @@ use crate::geometry::grid::KeyMap;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::behavior::Behavior;
 use crate::dynamics::body::{Body, BodyKey, GroupId};
 use crate::dynamics::broad_phase::{StaticGrid, SweepBuffers};
 use crate::dynamics::config::WorldConfig;
@@ -57,6 +58,16 @@ pub const PARTICLES: &str = "particles";
 struct Group {
     name: String,
     members: Vec<u32>,
+}
+
+/// What users and the demo know a body by, read rarely: kept apart from the solver's
+/// [`Body`] (at the same index in [`World::infos`]) so the step streams through hot data
+/// only.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyInfo {
+    /// The name reported in frames and dumps; unique in a world.
+    pub id: String,
+    pub behavior: Behavior,
 }
 
 /// What one step did: the figures a frame reports.
@@ -101,7 +112,9 @@ pub enum WorldError {
 #[derive(Clone, Debug)]
 pub struct World {
     pub config: WorldConfig,
+    /// The bodies' hot data, and their ids and behaviours at the same indices.
     bodies: Vec<Body>,
+    infos: Vec<BodyInfo>,
     groups: Vec<Group>,
     interactions: Vec<Interaction>,
     particles: Particles,
@@ -135,7 +148,6 @@ pub struct World {
     /// Pairs handed to the impulse solver by the other broad phases.
     solver_pairs: Vec<Pair>,
     solver_buffers: SolverBuffers,
-    /// Every body's id, to refuse duplicates without a scan.
     /// Where each body is in `bodies`, by id and by key: O(1) handles, rebuilt when
     /// bodies are removed (which moves the ones after them).
     by_id: KeyMap<String, u32>,
@@ -151,6 +163,7 @@ impl World {
         World {
             config,
             bodies: Vec::new(),
+            infos: Vec::new(),
             groups: Vec::new(),
             interactions: Vec::new(),
             particles: Particles::default(),
@@ -193,8 +206,14 @@ impl World {
         self.frame as f64 * self.config.dt
     }
 
+    /// The bodies' solver data, in body order.
     pub fn bodies(&self) -> &[Body] {
         &self.bodies
+    }
+
+    /// The bodies' ids and behaviours, at the same indices as [`World::bodies`].
+    pub fn infos(&self) -> &[BodyInfo] {
+        &self.infos
     }
 
     pub fn particles(&self) -> &Particles {
@@ -226,9 +245,19 @@ impl World {
         self.by_id.get(id).map(|&i| &self.bodies[i as usize])
     }
 
+    /// The id and behaviour of the body with this id.
+    pub fn info(&self, id: &str) -> Option<&BodyInfo> {
+        self.by_id.get(id).map(|&i| &self.infos[i as usize])
+    }
+
     /// The body with this key.
     pub fn body_by_key(&self, key: BodyKey) -> Option<&Body> {
         self.by_key.get(&key).map(|&i| &self.bodies[i as usize])
+    }
+
+    /// The id and behaviour of the body with this key.
+    pub fn info_by_key(&self, key: BodyKey) -> Option<&BodyInfo> {
+        self.by_key.get(&key).map(|&i| &self.infos[i as usize])
     }
 
     pub fn group_name(&self, group: GroupId) -> &str {
@@ -255,7 +284,7 @@ impl World {
 
     /// The selected body's id.
     pub fn selected(&self) -> Option<&str> {
-        self.body_by_key(self.selected?).map(|b| b.id.as_str())
+        self.info_by_key(self.selected?).map(|b| b.id.as_str())
     }
 
     /// Total kinetic energy of the rigid bodies.

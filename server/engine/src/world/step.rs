@@ -1,6 +1,7 @@
 //! The step pipeline: behaviours, integration, the rigid solver over the declared
 //! interactions, particles and emitters, sleeping, in that order (see [`World::step`]).
 
+use crate::behavior::Behavior;
 use crate::dynamics::body::GroupId;
 use crate::dynamics::broad_phase::BroadPhase;
 use crate::dynamics::ccd;
@@ -120,7 +121,18 @@ impl World {
             }
         }
         let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
-        self.sleeping = sleep::update(&mut self.bodies, &self.movers, &pairs, dt, speed, delay);
+        let infos = &self.infos;
+        let may_sleep =
+            |i: usize| matches!(infos[i].behavior, Behavior::None | Behavior::DumbMinion);
+        self.sleeping = sleep::update(
+            &mut self.bodies,
+            &self.movers,
+            may_sleep,
+            &pairs,
+            dt,
+            speed,
+            delay,
+        );
     }
 
     /// Wakes every sleeping body.

@@ -7,7 +7,7 @@ use crate::behavior::Behavior;
 use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
 use crate::particles::{Emitter, ParticleDef};
 
-use super::{Group, Interaction, Side, World, WorldError, PARTICLES};
+use super::{BodyInfo, Group, Interaction, Side, World, WorldError, PARTICLES};
 
 impl World {
     /// The group's id, creating the group if needed.
@@ -52,19 +52,20 @@ impl World {
             gravity: def.gravity,
             group,
             key,
-            behavior: def.behavior,
-            id: def.id,
             rest_time: 0.0,
             asleep: None,
         });
         self.groups[group as usize].members.push(index);
-        let body = &self.bodies[index as usize];
-        if !body.is_static() {
+        if !self.bodies[index as usize].is_static() {
             self.movers.push(index);
         }
-        if body.behavior != Behavior::None {
+        if def.behavior != Behavior::None {
             self.behaving.push(index);
         }
+        self.infos.push(BodyInfo {
+            id: def.id,
+            behavior: def.behavior,
+        });
         Ok(key)
     }
 
@@ -133,19 +134,31 @@ impl World {
 
     /// Removes the bodies for which `remove` is true, keeping the order of the rest (and
     /// wakes the world: a removed body may have held others up).
-    pub(super) fn remove_bodies(&mut self, remove: impl Fn(&Body) -> bool) {
-        if self.bodies.iter().any(&remove) {
-            self.wake_all();
+    pub(super) fn remove_bodies(&mut self, remove: impl Fn(&Body, &BodyInfo) -> bool) {
+        let doomed: Vec<bool> = self
+            .bodies
+            .iter()
+            .zip(&self.infos)
+            .map(|(b, info)| remove(b, info))
+            .collect();
+        if !doomed.contains(&true) {
+            return;
         }
-        if self.bodies.iter().any(|b| b.is_static() && remove(b)) {
+        self.wake_all();
+        if self
+            .bodies
+            .iter()
+            .zip(&doomed)
+            .any(|(b, &d)| d && b.is_static())
+        {
             self.statics_revision += 1;
         }
-        let before = self.bodies.len();
-        self.bodies.retain(|b| !remove(b));
-        if self.bodies.len() != before {
-            self.layout_revision += 1;
-            self.rebuild_groups();
-        }
+        let mut keep = doomed.iter().map(|&d| !d);
+        self.bodies.retain(|_| keep.next().unwrap_or(true));
+        let mut keep = doomed.iter().map(|&d| !d);
+        self.infos.retain(|_| keep.next().unwrap_or(true));
+        self.layout_revision += 1;
+        self.rebuild_groups();
     }
 
     /// Rebuilds every index into `bodies`: groups, the lists a step walks, and the
@@ -159,14 +172,14 @@ impl World {
         self.movers.clear();
         self.behaving.clear();
         self.flagged.clear();
-        for (i, b) in self.bodies.iter().enumerate() {
-            self.by_id.insert(b.id.clone(), i as u32);
+        for (i, (b, info)) in self.bodies.iter().zip(&self.infos).enumerate() {
+            self.by_id.insert(info.id.clone(), i as u32);
             self.by_key.insert(b.key, i as u32);
             self.groups[b.group as usize].members.push(i as u32);
             if !b.is_static() {
                 self.movers.push(i as u32);
             }
-            if b.behavior != Behavior::None {
+            if info.behavior != Behavior::None {
                 self.behaving.push(i as u32);
             }
             if b.collided {
