@@ -74,10 +74,11 @@ fn read_rrd(path: &Path) -> Value {
 
 #[test]
 fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
+    let dir = temp_dir();
     let server = Server::start("emitters.toml", "saved", &[]);
     let client = server.client();
     resume(&client);
-    let file = tmp("saved.rrd");
+    let file = dir.path().join("saved.rrd");
     let _ = std::fs::remove_file(&file);
     let frames = 120u64;
     let viewer = Process::new(bin("ricochet-viewer"))

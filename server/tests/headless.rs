@@ -18,10 +18,9 @@ fn scene(name: &str) -> PathBuf {
     root().join("assets/scenes").join(name)
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ricochet-headless-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A fresh directory, removed with everything in it when dropped.
+fn temp_dir() -> tempfile::TempDir {
+    tempfile::tempdir().expect("a temporary directory")
 }
 
 fn simulate(args: &[&str]) -> Output {
@@ -49,7 +48,8 @@ fn dump_of(
     extra: &[&str],
     file: &str,
 ) -> (Vec<u8>, Vec<FrameRecord>) {
-    let path = tmp(file);
+    let dir = temp_dir();
+    let path = dir.path().join(file);
     let scene_path = scene(scene_name);
     let steps = steps.to_string();
     let mut args = vec![
@@ -121,7 +121,8 @@ fn set_overrides_a_world_field() {
 
 #[test]
 fn inputs_are_applied_at_their_frame_and_replay_identically() {
-    let inputs = tmp("inputs.jsonl");
+    let dir = temp_dir();
+    let inputs = dir.path().join("inputs.jsonl");
     std::fs::write(
         &inputs,
         concat!(
@@ -154,7 +155,8 @@ fn inputs_are_applied_at_their_frame_and_replay_identically() {
 
 #[test]
 fn a_bad_scene_is_refused_with_file_line_and_field() {
-    let bad = tmp("bad-scene.toml");
+    let dir = temp_dir();
+    let bad = dir.path().join("bad-scene.toml");
     std::fs::write(
         &bad,
         "[world]\ndt = 0.01\n\n[[body]]\nid = \"b\"\nshape = \"circle\"\nradius = 0\n",
@@ -171,7 +173,8 @@ fn a_bad_scene_is_refused_with_file_line_and_field() {
 
 #[test]
 fn a_bad_input_line_is_refused_with_its_line() {
-    let inputs = tmp("bad-inputs.jsonl");
+    let dir = temp_dir();
+    let inputs = dir.path().join("bad-inputs.jsonl");
     std::fs::write(&inputs, "{\"frame\": 1, \"action\": {\"do\": \"press\", \"dir\": \"left\"}}\n{\"frame\": 2, \"action\": {\"do\": \"teleport\"}}\n").unwrap();
     let out = simulate(&[
         "--scene",
@@ -191,7 +194,8 @@ fn a_bad_input_line_is_refused_with_its_line() {
 
 #[test]
 fn stats_has_one_line_per_step_with_the_passes_counted() {
-    let stats = tmp("stats.jsonl");
+    let dir = temp_dir();
+    let stats = dir.path().join("stats.jsonl");
     simulate_ok(&[
         "--scene",
         scene("stack-20.toml").to_str().unwrap(),

@@ -43,10 +43,9 @@ pub fn scene(name: &str) -> String {
         .to_string()
 }
 
-pub fn tmp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ricochet-tests-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A fresh directory, removed with everything in it when dropped.
+pub fn temp_dir() -> tempfile::TempDir {
+    tempfile::tempdir().expect("a temporary directory")
 }
 
 pub fn free_endpoint() -> String {

@@ -119,40 +119,44 @@ enum Command {
     /// "particles":[{"x","y","size","color":[r,g,b,a]}],"emitters":count}.
     ///
     /// The same scene, seed and inputs give the same frames, bit for bit.
-    Simulate {
-        /// The scene file (TOML), e.g. assets/scenes/emitters.toml.
-        #[arg(long)]
-        scene: PathBuf,
-        /// How many fixed steps to run.
-        #[arg(long)]
-        steps: u64,
-        /// Seed of the world's random generator (overrides the scene's `[world] seed`).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Override a `[world]` field, e.g. --set relaxation_iterations=30
-        /// --set gravity=[0,-9.8] --set integrator=explicit. Repeatable.
-        #[arg(long = "set", value_name = "NAME=VALUE")]
-        set: Vec<String>,
-        /// Write every frame as JSON Lines to this file ("-" for standard output).
-        #[arg(long)]
-        dump: Option<PathBuf>,
-        /// Actions to apply, JSON Lines of {"frame": N, "action": {"do": ...}}: each is
-        /// applied after N steps, before step N + 1, in file order.
-        #[arg(long)]
-        inputs: Option<PathBuf>,
-        /// Write every step's figures as JSON Lines to this file (line k: step k): contacts,
-        /// solver passes, deepest penetration, kinetic energy, particle contacts, sleeping
-        /// bodies.
-        #[arg(long, value_name = "FILE")]
-        stats: Option<PathBuf>,
-        /// Encode every frame as the server would send it and report the bytes per frame,
-        /// per dynamic body and per particle.
-        #[arg(long)]
-        wire_stats: bool,
-        /// With --wire-stats: a key frame every this many frames, as `run` would send.
-        #[arg(long, default_value_t = 60)]
-        keyframe_interval: u64,
-    },
+    Simulate(SimulateArgs),
+}
+
+/// What `simulate` runs and writes.
+#[derive(clap::Args)]
+struct SimulateArgs {
+    /// The scene file (TOML), e.g. assets/scenes/emitters.toml.
+    #[arg(long)]
+    scene: PathBuf,
+    /// How many fixed steps to run.
+    #[arg(long)]
+    steps: u64,
+    /// Seed of the world's random generator (overrides the scene's `[world] seed`).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Override a `[world]` field, e.g. --set relaxation_iterations=30
+    /// --set gravity=[0,-9.8] --set integrator=explicit. Repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    set: Vec<String>,
+    /// Write every frame as JSON Lines to this file ("-" for standard output).
+    #[arg(long)]
+    dump: Option<PathBuf>,
+    /// Actions to apply, JSON Lines of {"frame": N, "action": {"do": ...}}: each is
+    /// applied after N steps, before step N + 1, in file order.
+    #[arg(long)]
+    inputs: Option<PathBuf>,
+    /// Write every step's figures as JSON Lines to this file (line k: step k): contacts,
+    /// solver passes, deepest penetration, kinetic energy, particle contacts, sleeping
+    /// bodies.
+    #[arg(long, value_name = "FILE")]
+    stats: Option<PathBuf>,
+    /// Encode every frame as the server would send it and report the bytes per frame,
+    /// per dynamic body and per particle.
+    #[arg(long)]
+    wire_stats: bool,
+    /// With --wire-stats: a key frame every this many frames, as `run` would send.
+    #[arg(long, default_value_t = 60)]
+    keyframe_interval: u64,
 }
 
 fn main() -> Result<()> {
@@ -224,26 +228,7 @@ fn main() -> Result<()> {
             net.mode = Mode::Router;
             host::run_router(&net)
         }
-        Command::Simulate {
-            scene,
-            steps,
-            seed,
-            set,
-            dump,
-            inputs,
-            stats,
-            wire_stats,
-            keyframe_interval,
-        } => simulate(
-            &scene,
-            steps,
-            seed,
-            set,
-            dump.as_deref(),
-            stats.as_deref(),
-            inputs.as_deref(),
-            wire_stats.then_some(keyframe_interval),
-        ),
+        Command::Simulate(args) => simulate(args),
     }
 }
 
@@ -313,16 +298,25 @@ fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {
     parse_input_log(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }
 
-fn simulate(
-    scene_path: &Path,
-    steps: u64,
-    seed: Option<u64>,
-    mut overrides: Vec<String>,
-    dump_path: Option<&Path>,
-    stats_path: Option<&Path>,
-    inputs: Option<&Path>,
-    wire_stats: Option<u64>,
-) -> Result<()> {
+fn simulate(args: SimulateArgs) -> Result<()> {
+    let SimulateArgs {
+        scene: scene_path,
+        steps,
+        seed,
+        set: mut overrides,
+        dump: dump_path,
+        inputs,
+        stats: stats_path,
+        wire_stats,
+        keyframe_interval,
+    } = args;
+    let (scene_path, dump_path, stats_path, inputs) = (
+        scene_path.as_path(),
+        dump_path.as_deref(),
+        stats_path.as_deref(),
+        inputs.as_deref(),
+    );
+    let wire_stats = wire_stats.then_some(keyframe_interval);
     if let Some(seed) = seed {
         overrides.push(format!("seed={seed}"));
     }

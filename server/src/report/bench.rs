@@ -312,7 +312,7 @@ mod tests {
         let (worst, last) = (row.worst_drift.unwrap(), row.final_drift.unwrap());
         assert!(worst >= last && last > 0.0, "{worst} {last}");
         assert!(row.ms_p10 <= row.ms_median && row.ms_median <= row.ms_p90);
-        let csv = to_csv(&[row.clone()]).unwrap();
+        let csv = to_csv(std::slice::from_ref(&row)).unwrap();
         assert!(csv.starts_with("scene,setting,overrides,"), "{csv}");
         assert!(to_markdown(&[row]).contains("| stack-20 | chapter |"));
     }

@@ -1,5 +1,5 @@
-//! Speed against accuracy, measured (`ricochet-server tradeoff`): a matrix of scenes and
-//! solver settings; per cell the median time per step and what the setting buys: error
+//! Speed against accuracy, measured (`ricochet-server tradeoff`): a matrix of shipped
+//! scenes (`assets/scenes/`, embedded at build time) and solver settings; per cell the median time per step and what the setting buys: error
 //! against closed-form answers, penetration, drift of resting bodies, energy drift, NaN.
 
 use std::time::Instant;
@@ -7,8 +7,7 @@ use std::time::Instant;
 use glam::DVec2;
 
 use ricochet_engine::dynamics::config::{Integrator, Solver, WorldConfig};
-use ricochet_engine::dynamics::{BodyDef, BroadPhase};
-use ricochet_engine::geometry::Shape;
+use ricochet_engine::dynamics::BroadPhase;
 use ricochet_engine::world::World;
 
 /// A setting of the matrix: a name and the knobs it turns.
@@ -112,18 +111,6 @@ pub struct Cell {
     pub nan: bool,
 }
 
-fn body(id: &str, group: &str, shape: Shape, pos: DVec2, vel: DVec2, mass: f64) -> BodyDef {
-    BodyDef {
-        id: id.into(),
-        group: group.into(),
-        shape,
-        pos,
-        vel,
-        mass,
-        ..BodyDef::default()
-    }
-}
-
 fn energy(w: &World) -> f64 {
     let g = -w.config.gravity.y;
     w.bodies()
@@ -136,74 +123,6 @@ fn energy(w: &World) -> f64 {
 /// The scenes of the matrix: (name, steps, builder).
 type Builder = fn(WorldConfig) -> World;
 
-fn projectile(c: WorldConfig) -> World {
-    let mut w = World::new(c);
-    w.add_body(body(
-        "ball",
-        "balls",
-        Shape::circle(0.5),
-        DVec2::new(0.0, 10.0),
-        DVec2::new(10.0, 20.0),
-        1.0,
-    ))
-    .expect("valid");
-    w
-}
-
-fn bounce(c: WorldConfig) -> World {
-    let mut w = World::new(c);
-    // Restitution 1 on both: the pair bounces by the smaller of the two.
-    let mut g = body(
-        "ground",
-        "ground",
-        Shape::rect(20.0, 2.0),
-        DVec2::new(0.0, -1.0),
-        DVec2::ZERO,
-        0.0,
-    );
-    g.restitution = 1.0;
-    w.add_body(g).expect("valid");
-    let mut ball = body(
-        "ball",
-        "balls",
-        Shape::circle(0.5),
-        DVec2::new(0.0, 5.5),
-        DVec2::ZERO,
-        1.0,
-    );
-    ball.restitution = 1.0;
-    w.add_body(ball).expect("valid");
-    w.add_interaction("balls", "ground", true).expect("groups");
-    w
-}
-
-fn slide(c: WorldConfig) -> World {
-    let mut w = World::new(c);
-    let mut g = body(
-        "ground",
-        "ground",
-        Shape::rect(400.0, 2.0),
-        DVec2::new(0.0, -1.0),
-        DVec2::ZERO,
-        0.0,
-    );
-    g.friction = 0.0;
-    w.add_body(g).expect("valid");
-    let mut b = body(
-        "box",
-        "boxes",
-        Shape::rect(1.0, 1.0),
-        DVec2::new(0.0, 0.5),
-        DVec2::new(5.0, 0.0),
-        1.0,
-    );
-    b.friction = 0.0;
-    b.restitution = 0.0;
-    w.add_body(b).expect("valid");
-    w.add_interaction("boxes", "ground", true).expect("groups");
-    w
-}
-
 /// A shipped scene (the file users run, embedded at build time) under the setting `c`
 /// in place of its own `[world]` (the stack and pyramid scenes declare gravity -10,
 /// unscaled acceleration and 15 relaxation passes, as the settings' base does).
@@ -213,6 +132,30 @@ fn shipped(name: &str, text: &str, c: WorldConfig) -> World {
         .unwrap_or_else(|e| panic!("the shipped scene {name} loads: {e}"));
     w.config = c;
     w
+}
+
+fn projectile(c: WorldConfig) -> World {
+    shipped(
+        "projectile.toml",
+        include_str!("../../../assets/scenes/projectile.toml"),
+        c,
+    )
+}
+
+fn bounce(c: WorldConfig) -> World {
+    shipped(
+        "bounce.toml",
+        include_str!("../../../assets/scenes/bounce.toml"),
+        c,
+    )
+}
+
+fn slide(c: WorldConfig) -> World {
+    shipped(
+        "slide.toml",
+        include_str!("../../../assets/scenes/slide.toml"),
+        c,
+    )
 }
 
 fn stack(c: WorldConfig) -> World {
