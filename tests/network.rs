@@ -188,7 +188,7 @@ fn malformed_commands_get_error_replies_and_the_server_keeps_stepping() {
         (br#"{"do":"clear","group":"nobody"}"#.to_vec(), "nobody"),
         (
             br#"{"do":"load","path":"/nonexistent.toml"}"#.to_vec(),
-            "cannot read",
+            "no scene",
         ),
         (
             br#"{"do":"load","text":"[[body]]\nshape = \"hexagon\""}"#.to_vec(),
@@ -372,7 +372,7 @@ fn the_info_key_gives_the_scene_its_bounds_and_groups_and_changes_on_load() {
     let reply = request(
         &client,
         Command::Server(ServerCommand::Load {
-            path: Some(scene("bounds.toml")),
+            path: Some("bounds.toml".into()),
             text: None,
         }),
     );

@@ -6,6 +6,7 @@
 //! server's clock. [`Command::parse`] tells the two apart and names what is wrong with a
 //! malformed one.
 
+use ricochet_engine::world::short;
 use serde::{Deserialize, Serialize};
 
 pub use ricochet_engine::action::{Action, Direction, MinionShape, Point};
@@ -29,7 +30,8 @@ pub enum ServerCommand {
         #[serde(default)]
         paused: bool,
     },
-    /// Loads another scene: a path on the server's machine, or the scene's TOML text.
+    /// Loads another scene: `path`, a file name under the server's scenes directory
+    /// (`ricochet-server run --scenes DIR`), or `text`, the scene's TOML.
     Load {
         #[serde(default)]
         path: Option<String>,
@@ -53,16 +55,34 @@ pub enum Command {
     World(Action),
 }
 
-/// The largest command accepted, in bytes (a scene's text included).
+/// The largest command [`Command::parse`] reads, in bytes (a scene's text included); a
+/// server lowers it to its world's `command_bytes` limit with [`Command::parse_limited`].
 pub const MAX_COMMAND_BYTES: usize = 1 << 20;
+
+/// The longest name (group, preset, scene) a command may carry, in bytes.
+pub const MAX_NAME_BYTES: usize = 256;
+
+/// Bytes of an error message a refusal echoes at most: what a peer sent is never
+/// repeated at length to it, to event subscribers or to the log.
+pub const MAX_ERROR_BYTES: usize = 300;
 
 impl Command {
     /// Parses a command from JSON, naming what is wrong: not JSON, no `do`, an unknown
-    /// command, or a bad argument of a known one.
+    /// command, a bad argument of a known one, or a name too long. At most
+    /// [`MAX_COMMAND_BYTES`].
     pub fn parse(bytes: &[u8]) -> Result<Command, String> {
-        if bytes.len() > MAX_COMMAND_BYTES {
+        Self::parse_limited(bytes, MAX_COMMAND_BYTES)
+    }
+
+    /// [`Command::parse`] of at most `max_bytes`; errors are cut to [`MAX_ERROR_BYTES`].
+    pub fn parse_limited(bytes: &[u8], max_bytes: usize) -> Result<Command, String> {
+        Self::parse_unshortened(bytes, max_bytes).map_err(|e| short(&e, MAX_ERROR_BYTES))
+    }
+
+    fn parse_unshortened(bytes: &[u8], max_bytes: usize) -> Result<Command, String> {
+        if bytes.len() > max_bytes {
             return Err(format!(
-                "command of {} bytes is larger than {MAX_COMMAND_BYTES}",
+                "command of {} bytes is larger than the limit of {max_bytes}",
                 bytes.len()
             ));
         }
@@ -72,12 +92,12 @@ impl Command {
             .get("do")
             .ok_or("a command is a JSON object with a `do` field naming it")?
             .as_str()
-            .ok_or("`do` must be a string")?
-            .to_string();
-        if SERVER_COMMANDS.contains(&name.as_str()) {
+            .ok_or("`do` must be a string")?;
+        let name = short(name, 64);
+        let command = if SERVER_COMMANDS.contains(&name.as_str()) {
             serde_json::from_value(value)
                 .map(Command::Server)
-                .map_err(|e| format!("`{name}`: {e}"))
+                .map_err(|e| format!("`{name}`: {e}"))?
         } else {
             serde_json::from_value(value)
                 .map(Command::World)
@@ -92,7 +112,33 @@ impl Command {
                     } else {
                         format!("`{name}`: {msg}")
                     }
-                })
+                })?
+        };
+        for (field, text) in command.names() {
+            if text.len() > MAX_NAME_BYTES {
+                return Err(format!(
+                    "`{name}`: `{field}` is {} bytes long; names are at most {MAX_NAME_BYTES}",
+                    text.len()
+                ));
+            }
+        }
+        Ok(command)
+    }
+
+    /// The names the command carries (groups, presets, a scene path), by field.
+    fn names(&self) -> Vec<(&'static str, &str)> {
+        match self {
+            Command::World(Action::Clear { group }) => vec![("group", group)],
+            Command::World(Action::Select {
+                group: Some(group), ..
+            }) => vec![("group", group)],
+            Command::World(
+                Action::SpawnParticles { preset, .. } | Action::StartEmitter { preset, .. },
+            ) => vec![("preset", preset)],
+            Command::Server(ServerCommand::Load {
+                path: Some(path), ..
+            }) => vec![("path", path)],
+            _ => Vec::new(),
         }
     }
 
@@ -250,6 +296,24 @@ mod tests {
         }
         let huge = vec![b' '; MAX_COMMAND_BYTES + 1];
         assert!(Command::parse(&huge).unwrap_err().contains("larger"));
+        assert!(Command::parse_limited(br#"{"do":"deselect"}   "#, 10)
+            .unwrap_err()
+            .contains("limit of 10"));
+    }
+
+    #[test]
+    fn refusals_never_echo_much_of_what_was_sent() {
+        let long = "y".repeat(100_000);
+        for text in [
+            format!(r#"{{"do":"{long}"}}"#),
+            format!(r#"{{"do":"clear","group":"{long}"}}"#),
+            format!(r#"{{"do":"press","dir":"{long}"}}"#),
+            format!(r#"{{"do":"load","path":"{long}"}}"#),
+            format!(r#"{{"do":"clear","group":"x"}}{long}"#),
+        ] {
+            let e = Command::parse(text.as_bytes()).unwrap_err();
+            assert!(e.len() <= MAX_ERROR_BYTES + 4, "{} bytes: {e:.80}", e.len());
+        }
     }
 
     #[test]

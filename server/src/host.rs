@@ -20,8 +20,11 @@ use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
 use ricochet_engine::scene;
-use ricochet_engine::world::World;
+use ricochet_engine::world::{short, Limits, World};
+use ricochet_protocol::command::MAX_ERROR_BYTES;
 use ricochet_protocol::world as wire;
+
+use crate::scenes::{read_scene, resolve_scene};
 
 /// Late steps run back to back before the clock gives up and re-anchors.
 pub const MAX_CATCH_UP: u64 = 5;
@@ -49,6 +52,14 @@ pub struct HostOptions {
     /// Append every published frame to this file as a dump line (full precision, as
     /// `simulate --dump` writes them), flushed each frame.
     pub dump: Option<PathBuf>,
+    /// Where `load` finds scenes by name; nothing outside it is read.
+    pub scenes_dir: PathBuf,
+    /// The limits every world hosted here runs under at most (a scene's `[limits]` may
+    /// lower them).
+    pub limits: Limits,
+    /// Steps per second of wall time at most: a world whose `dt` is shorter runs slower
+    /// than real time rather than flooding its viewers.
+    pub max_rate: f64,
 }
 
 /// The world, its scene and what the wire remembers of it.
@@ -65,16 +76,14 @@ struct Hosted {
     last_step_ms: f32,
     /// Bumped by every (re)load, so viewers can tell a new scene.
     generation: u64,
+    scenes_dir: PathBuf,
+    limits: Limits,
 }
 
 impl Hosted {
-    fn load(
-        scene_text: String,
-        scene_name: PathBuf,
-        overrides: Vec<String>,
-        keyframe_interval: u64,
-    ) -> Result<Self> {
-        let world = scene::parse(&scene_text, &scene_name, &overrides)?;
+    fn load(scene_text: String, scene_name: PathBuf, opts: &HostOptions) -> Result<Self> {
+        let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)?;
+        let (overrides, keyframe_interval) = (opts.overrides.clone(), opts.keyframe_interval);
         Ok(Hosted {
             world,
             scene_text,
@@ -87,6 +96,8 @@ impl Hosted {
             overruns: 0,
             last_step_ms: 0.0,
             generation: 0,
+            scenes_dir: opts.scenes_dir.clone(),
+            limits: opts.limits.clone(),
         })
     }
 
@@ -161,7 +172,12 @@ impl Hosted {
                 Ok(Vec::new())
             }
             Command::Server(ServerCommand::Reset { paused }) => {
-                match scene::parse(&self.scene_text, &self.scene_name, &self.overrides) {
+                match scene::parse_with(
+                    &self.scene_text,
+                    &self.scene_name,
+                    &self.overrides,
+                    &self.limits,
+                ) {
                     Ok(world) => {
                         self.replace_world(world);
                         self.paused = *paused;
@@ -191,7 +207,7 @@ impl Hosted {
                 ok: false,
                 frame,
                 ids: Vec::new(),
-                error: Some(error),
+                error: Some(short(&error, MAX_ERROR_BYTES)),
             },
         }
     }
@@ -203,14 +219,16 @@ impl Hosted {
     ) -> Result<Vec<String>, String> {
         let (text, name) = match (path, text) {
             (Some(p), None) => {
-                let text = std::fs::read_to_string(p)
-                    .map_err(|e| format!("cannot read scene {p}: {e}"))?;
+                let file = resolve_scene(&self.scenes_dir, p)?;
+                let text = read_scene(&file, &short(p, 64))?;
+                // Errors name the scene as the client asked for it, not where it lives.
                 (text, PathBuf::from(p))
             }
             (None, Some(t)) => (t.to_string(), PathBuf::from("<loaded scene>")),
             _ => return Err("`load` takes either `path` or `text`".into()),
         };
-        let world = scene::parse(&text, &name, &self.overrides).map_err(|e| e.to_string())?;
+        let world = scene::parse_with(&text, &name, &self.overrides, &self.limits)
+            .map_err(|e| e.to_string())?;
         self.scene_text = text;
         self.scene_name = name;
         self.replace_world(world);
@@ -229,12 +247,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let keys = WorldKeys::new(&opts.world).map_err(|e| anyhow!(e))?;
     let text = std::fs::read_to_string(&opts.scene)
         .with_context(|| format!("cannot read scene {}", opts.scene.display()))?;
-    let mut host = Hosted::load(
-        text,
-        opts.scene.clone(),
-        opts.overrides.clone(),
-        opts.keyframe_interval,
-    )?;
+    let mut host = Hosted::load(text, opts.scene.clone(), &opts)?;
     host.paused = opts.paused;
 
     let mut dump = match &opts.dump {
@@ -319,7 +332,22 @@ pub fn run(opts: HostOptions) -> Result<()> {
     // Frame 0: the state before the first step.
     publish(&mut host);
 
-    let mut dt_ns = (host.world.config.dt * 1e9).round() as u64;
+    // The wall time between steps: the world's dt, or longer where it would step faster
+    // than `max_rate`.
+    let min_interval_ns = (1e9 / opts.max_rate).round() as u64;
+    let interval = |h: &Hosted| {
+        let dt_ns = (h.world.config.dt * 1e9).round() as u64;
+        if dt_ns < min_interval_ns {
+            tracing::warn!(
+                dt = h.world.config.dt,
+                max_rate = opts.max_rate,
+                "dt is shorter than 1/max-rate: the world runs slower than real time"
+            );
+        }
+        dt_ns.max(min_interval_ns)
+    };
+    let mut dt_ns = interval(&host);
+    let mut last_dt = host.world.config.dt;
     let mut anchor = Instant::now();
     let mut due: u64 = 1; // steps since the anchor, the next one included
     loop {
@@ -365,7 +393,8 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 break;
             };
             handled += 1;
-            let parsed = Command::parse(&payload);
+            let parsed =
+                Command::parse_limited(&payload, host.world.limits().command_bytes as usize);
             let reply = match &parsed {
                 Ok(command) => host.handle(command, &mut publish),
                 Err(error) => Reply {
@@ -399,7 +428,12 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 }
             }
         }
-        let new_dt = (host.world.config.dt * 1e9).round() as u64;
+        let new_dt = if host.world.config.dt != last_dt {
+            last_dt = host.world.config.dt;
+            interval(&host)
+        } else {
+            dt_ns
+        };
         if new_dt != dt_ns || (was_paused && !host.paused) {
             // The clock restarts from now at the new rate.
             dt_ns = new_dt;

@@ -3,6 +3,7 @@
 //! - [`host`]: the authoritative host: commands flow in from zenoh, are stamped with the
 //!   frame they take effect in and applied between fixed steps; frames, snapshots and
 //!   events flow out;
+//! - [`scenes`]: the scenes directory, the only files a `load` from the network reads;
 //! - [`report`]: the measuring commands (benchmark, trade-off), which step scenes and
 //!   write figures, CSV and charts.
 //!
@@ -10,3 +11,4 @@
 
 pub mod host;
 pub mod report;
+pub mod scenes;

@@ -29,7 +29,7 @@ spawn_minion at=[x,y] [shape=rect], spawn_dumb_minion at=[x,y], select at=[x,y] 
 drag to=[x,y], deselect, agitate [strength=S], clear group=G,\n\
 spawn_particles preset=fire at=[x,y] [count=N], start_emitter preset=fire count=N at=[x,y],\n\
 set name=NAME value=VALUE. Server commands: pause, resume, step [n=N], reset [paused=true],\n\
-load path=FILE | text=TOML."
+load path=NAME (a scene file under the server's scenes directory) | text=TOML."
 )]
 struct Cli {
     /// The world to talk to.

@@ -131,10 +131,9 @@ pub enum ActionError {
     UnknownGroup(String),
     #[error(transparent)]
     Config(#[from] ConfigError),
+    #[error(transparent)]
+    Limit(#[from] crate::world::LimitError),
 }
-
-/// The largest particle count one action may ask for.
-pub const MAX_PARTICLES_PER_ACTION: u32 = 1_000_000;
 
 #[cfg(test)]
 mod tests {

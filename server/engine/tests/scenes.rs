@@ -105,7 +105,12 @@ fn a_broken_file_is_refused_at_its_line() {
 
 #[test]
 fn bad_numbers_are_refused_with_the_field_at_fault() {
-    refused("[world]\nseed = 1\ndt = 0\n", 3, "world.dt", "above 0");
+    refused(
+        "[world]\nseed = 1\ndt = 0\n",
+        3,
+        "world.dt",
+        "from 0.00001 to 1",
+    );
     refused(
         "[[body]]\nid = \"a\"\nshape = \"circle\"\nradius = -1\n",
         4,
@@ -201,4 +206,52 @@ pos = [0, 0]
     .unwrap();
     assert!(w.presets().get("spark").is_some() && w.presets().get("fire").is_some());
     assert_eq!(w.emitters().len(), 1);
+}
+
+#[test]
+fn a_scene_over_its_limits_is_refused_at_the_field_that_asks_too_much() {
+    let pile = "[limits]\nbodies = 10\n\n[[generate]]\nkind = \"stack\"\nid = \"s\"\nshape = \"rect\"\nsize = [1, 1]\ncount = 11\n";
+    refused(pile, 9, "generate[0].count", "limits.bodies");
+    assert!(scene::parse(
+        &pile.replace("count = 11", "count = 10"),
+        Path::new("t.toml"),
+        &[]
+    )
+    .is_ok());
+    // A scene may lower a limit, never raise it above the runner's.
+    refused("[limits]\nbodies = 1e12\n", 2, "limits.bodies", "");
+    refused(
+        "[limits]\nbodies = 200000\n",
+        2,
+        "limits.bodies",
+        "may only lower",
+    );
+    refused("[limits]\nnope = 3\n", 2, "limits.nope", "unknown");
+    // Emitters and presets count against theirs.
+    refused(
+        "[limits]\nparticles = 100\n\n[[emitter]]\npreset = \"fire\"\ncount = 101\npos = [0, 0]\n",
+        6,
+        "emitter[0].count",
+        "limits.particles",
+    );
+    refused(
+        "[limits]\nrand_terms = 2\n\n[preset.spark]\nlife = { base = 1, rand = [1, 2, 3] }\ncolor = [1, 1, 1, 1]\nfinal_color = [1, 1, 1, 1]\nsize = 1\nsize_delta = 1\nvel = [0, 0]\ndrag = 1\n",
+        4,
+        "preset.spark.rand",
+        "3 random terms",
+    );
+}
+
+#[test]
+fn a_scene_whose_step_would_cost_more_than_its_work_limit_is_refused() {
+    let pile = |broad_phase: &str| {
+        format!(
+            "[world]\nbroad_phase = \"{broad_phase}\"\n\n[limits]\nstep_work = 1e6\n\n[[generate]]\nkind = \"grid\"\nid = \"g\"\ngroup = \"g\"\nshape = \"rect\"\nsize = [1, 1]\ncols = 50\nrows = 50\n\n[[interact]]\na = \"g\"\nb = \"g\"\n"
+        )
+    };
+    // 2 500 bodies: all pairs is 3.1e6 tests times 15 passes; the sweep a few per body.
+    let e = scene::parse(&pile("all_pairs"), Path::new("t.toml"), &[]).unwrap_err();
+    assert_eq!(e.field, "world.solver");
+    assert!(e.message.contains("step_work"), "{e}");
+    scene::parse(&pile("sweep"), Path::new("t.toml"), &[]).unwrap();
 }

@@ -12,7 +12,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use ricochet_engine::scene;
-use ricochet_engine::world::World;
+use ricochet_engine::world::{Limits, World};
 use ricochet_protocol::command::{parse_input_log, TimedAction};
 use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
 use ricochet_protocol::keys::DEFAULT_WORLD;
@@ -68,6 +68,19 @@ enum Command {
         /// form of `simulate --dump` (full precision), flushed each frame.
         #[arg(long, value_name = "FILE")]
         dump: Option<PathBuf>,
+        /// The directory `load` commands may name scenes in (nothing outside it is read);
+        /// the directory of --scene by default.
+        #[arg(long, value_name = "DIR")]
+        scenes: Option<PathBuf>,
+        /// Lower or raise a limit of the hosted worlds, e.g. --limit bodies=5000
+        /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
+        /// `[limits]` may lower these, never raise them. Repeatable.
+        #[arg(long = "limit", value_name = "NAME=VALUE")]
+        limit: Vec<String>,
+        /// Steps per second of wall time at most: a world with a shorter dt runs slower
+        /// than real time instead of flooding its viewers.
+        #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+        max_rate: f64,
     },
     /// Measure the engine's speed on shipped scenes (figures, not pass/fail).
     ///
@@ -157,6 +170,9 @@ struct SimulateArgs {
     /// With --wire-stats: a key frame every this many frames, as `run` would send.
     #[arg(long, default_value_t = 60)]
     keyframe_interval: u64,
+    /// Lower or raise a limit of the world, as for `run` (docs/security.md). Repeatable.
+    #[arg(long = "limit", value_name = "NAME=VALUE")]
+    limit: Vec<String>,
 }
 
 fn main() -> Result<()> {
@@ -171,16 +187,37 @@ fn main() -> Result<()> {
             keyframe_interval,
             max_frames,
             dump,
-        } => host::run(HostOptions {
-            scene,
-            world,
-            network: network.server(),
-            paused,
-            overrides: set,
-            keyframe_interval,
-            max_frames,
-            dump,
-        }),
+            scenes,
+            limit,
+            max_rate,
+        } => {
+            if !(max_rate.is_finite() && max_rate > 0.0) {
+                anyhow::bail!(
+                    "--max-rate {max_rate}: must be a number of steps per second above 0"
+                );
+            }
+            let scenes_dir = match scenes {
+                Some(dir) => dir,
+                None => scene
+                    .parent()
+                    .filter(|p| !p.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."))
+                    .to_path_buf(),
+            };
+            host::run(HostOptions {
+                scene,
+                world,
+                network: network.server(),
+                paused,
+                overrides: set,
+                keyframe_interval,
+                max_frames,
+                dump,
+                scenes_dir,
+                limits: Limits::default().with(&limit)?,
+                max_rate,
+            })
+        }
         Command::Bench {
             steps,
             only,
@@ -309,7 +346,9 @@ fn simulate(args: SimulateArgs) -> Result<()> {
         stats: stats_path,
         wire_stats,
         keyframe_interval,
+        limit,
     } = args;
+    let limits = Limits::default().with(&limit)?;
     let (scene_path, dump_path, stats_path, inputs) = (
         scene_path.as_path(),
         dump_path.as_deref(),
@@ -322,7 +361,7 @@ fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let text = std::fs::read_to_string(scene_path)
         .with_context(|| format!("cannot read scene {}", scene_path.display()))?;
-    let mut world: World = scene::parse(&text, scene_path, &overrides)?;
+    let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)?;
     let inputs = match inputs {
         Some(p) => read_inputs(p)?,
         None => Vec::new(),

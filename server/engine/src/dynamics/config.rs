@@ -54,6 +54,13 @@ impl Solver {
 pub const DEFAULT_CORRECTION_RATE: f64 = 0.8;
 /// The chapter's relaxation count.
 pub const DEFAULT_RELAXATION_ITERATIONS: u32 = 15;
+/// The time step's range in seconds: below it a real-time server would step faster than
+/// any clock can pace, above it a step is no longer a step.
+pub const DT_RANGE: std::ops::RangeInclusive<f64> = 1e-5..=1.0;
+/// Solver passes one step may run at most, all sub-steps together.
+pub const MAX_PASSES_PER_STEP: u64 = 100_000;
+/// The largest acceleration component a world accepts (units/s²).
+pub const MAX_ACCELERATION: f64 = 1e9;
 
 /// World parameters. Defaults are the chapter's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -195,21 +202,35 @@ impl WorldConfig {
         Ok(())
     }
 
-    /// The chapter's setter: a count below 1 becomes 1.
+    /// The chapter's setter: a count below 1 becomes 1 (and above 10 000 is refused by
+    /// [`WorldConfig::validate`]).
     pub fn set_relaxation_iterations(&mut self, count: i64) {
         self.relaxation_iterations = count.clamp(1, u32::MAX as i64) as u32;
     }
 
-    /// Sets the time step; it must be finite and positive.
+    /// Sets the time step; it must be a number in [`DT_RANGE`].
     pub fn set_dt(&mut self, dt: f64) -> Result<(), ConfigError> {
-        if !(dt.is_finite() && dt > 0.0) {
+        if !DT_RANGE.contains(&dt) {
             return Err(invalid(
                 "dt",
-                format!("{dt} must be a finite number above 0"),
+                format!(
+                    "{dt} must be a number from {} to {} seconds",
+                    DT_RANGE.start(),
+                    DT_RANGE.end()
+                ),
             ));
         }
         self.dt = dt;
         Ok(())
+    }
+
+    /// Solver passes one step runs at most: sub-steps times the passes of each.
+    pub fn passes_per_step(&self) -> u64 {
+        self.substeps as u64
+            * match self.solver {
+                Solver::Relaxation => self.relaxation_iterations as u64,
+                Solver::Impulses => self.impulse_iterations as u64 + self.relax_iterations as u64,
+            }
     }
 
     /// Checks a whole configuration (after deserialising a scene) and applies the
@@ -219,13 +240,22 @@ impl WorldConfig {
             ("gravity", self.gravity),
             ("particle_gravity", self.particle_gravity),
         ] {
-            if !v.is_finite() {
-                return Err(invalid(name, format!("{v} is not finite")));
+            if !(v.is_finite() && v.abs().max_element() <= MAX_ACCELERATION) {
+                return Err(invalid(
+                    name,
+                    format!("{v} must be finite, each component within ±{MAX_ACCELERATION:e}"),
+                ));
             }
         }
         self.set_dt(self.dt)?;
         self.set_correction_rate(self.correction_rate)?;
         self.set_relaxation_iterations(self.relaxation_iterations as i64);
+        if self.relaxation_iterations > 10_000 {
+            return Err(invalid(
+                "relaxation_iterations",
+                format!("{} must be at most 10000", self.relaxation_iterations),
+            ));
+        }
         if !(1..=1000).contains(&self.substeps) {
             return Err(invalid(
                 "substeps",
@@ -258,14 +288,30 @@ impl WorldConfig {
                 format!("{} must be in [0, 1]", self.baumgarte),
             ));
         }
+        let passes = self.passes_per_step();
+        if passes > MAX_PASSES_PER_STEP {
+            let name = match self.solver {
+                Solver::Relaxation => "relaxation_iterations",
+                Solver::Impulses => "impulse_iterations",
+            };
+            return Err(invalid(
+                name,
+                format!(
+                    "{passes} solver passes a step (sub-steps times passes) is over {MAX_PASSES_PER_STEP}"
+                ),
+            ));
+        }
         for (name, v) in [
             ("sleep_speed", self.sleep_speed),
             ("sleep_delay", self.sleep_delay),
         ] {
-            if !(v.is_finite() && v >= 0.0) {
+            if !(v.is_finite() && (0.0..=crate::dynamics::body::MAX_COORDINATE).contains(&v)) {
                 return Err(invalid(
                     name,
-                    format!("{v} must be a finite number, 0 or above"),
+                    format!(
+                        "{v} must be a number from 0 to {:e}",
+                        crate::dynamics::body::MAX_COORDINATE
+                    ),
                 ));
             }
         }
@@ -273,10 +319,16 @@ impl WorldConfig {
             return Err(invalid("slop", format!("{} must be in [0, 1]", self.slop)));
         }
         let [lo, hi] = self.bounds;
-        if !(lo.is_finite() && hi.is_finite() && hi.x > lo.x && hi.y > lo.y) {
+        let within = |v: DVec2| {
+            v.is_finite() && v.abs().max_element() <= crate::dynamics::body::MAX_COORDINATE
+        };
+        if !(within(lo) && within(hi) && hi.x > lo.x && hi.y > lo.y) {
             return Err(invalid(
                 "bounds",
-                "needs two finite corners [[x0, y0], [x1, y1]] with x1 > x0 and y1 > y0",
+                format!(
+                    "needs two corners [[x0, y0], [x1, y1]] within ±{:e}, with x1 > x0 and y1 > y0",
+                    crate::dynamics::body::MAX_COORDINATE
+                ),
             ));
         }
         Ok(())
@@ -335,6 +387,11 @@ mod tests {
             "dt=0",
             "dt=-1",
             "dt=nan",
+            "dt=1e-300",
+            "dt=1e300",
+            "relaxation_iterations=4000000000",
+            "gravity=[0, -1e300]",
+            "sleep_delay=1e300",
             "gravity=[0]",
             "gravity=[inf, 0]",
             "integrator=verlet",
@@ -346,5 +403,10 @@ mod tests {
             assert!(e.contains(name), "error for {bad} should name {name}: {e}");
         }
         assert_eq!(c, before);
+        // Sub-steps times passes is bounded as a whole.
+        c.set_from_str("substeps=1000").unwrap();
+        let e = c.set_from_str("relaxation_iterations=200").unwrap_err();
+        assert!(e.to_string().contains("passes"), "{e}");
+        assert_eq!(c.relaxation_iterations, 15);
     }
 }

@@ -36,6 +36,14 @@ impl Sample {
         }
     }
 
+    /// How many random terms it draws.
+    pub fn rand_terms(&self) -> usize {
+        match self {
+            Sample::Constant(_) => 0,
+            Sample::Random { rand, .. } => rand.len(),
+        }
+    }
+
     fn is_finite(&self) -> bool {
         match self {
             Sample::Constant(v) => v.is_finite(),
@@ -80,9 +88,9 @@ impl ParticlePreset {
         }
     }
 
-    /// Names the first field holding a non-finite number.
-    pub fn non_finite_field(&self) -> Option<&'static str> {
-        let fields: [(&'static str, Vec<&Sample>); 7] = [
+    /// Every field's numbers, by field name.
+    fn fields(&self) -> [(&'static str, Vec<&Sample>); 7] {
+        [
             ("life", vec![&self.life]),
             ("color", self.color.iter().collect()),
             ("final_color", self.final_color.iter().collect()),
@@ -90,11 +98,23 @@ impl ParticlePreset {
             ("size_delta", vec![&self.size_delta]),
             ("vel", self.vel.iter().collect()),
             ("drag", vec![&self.drag]),
-        ];
-        fields
+        ]
+    }
+
+    /// Names the first field holding a non-finite number.
+    pub fn non_finite_field(&self) -> Option<&'static str> {
+        self.fields()
             .into_iter()
             .find(|(_, samples)| samples.iter().any(|s| !s.is_finite()))
             .map(|(name, _)| name)
+    }
+
+    /// The first field with more than `max` random terms in one number, and its count.
+    pub fn too_many_rand_terms(&self, max: usize) -> Option<(&'static str, usize)> {
+        self.fields().into_iter().find_map(|(name, samples)| {
+            let most = samples.iter().map(|s| s.rand_terms()).max().unwrap_or(0);
+            (most > max).then_some((name, most))
+        })
     }
 }
 
@@ -131,6 +151,14 @@ impl PresetLibrary {
 
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.presets.keys().map(String::as_str)
+    }
+
+    pub fn len(&self) -> usize {
+        self.presets.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.presets.is_empty()
     }
 }
 

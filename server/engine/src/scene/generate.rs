@@ -8,9 +8,12 @@ use crate::geometry::Shape;
 /// The largest number of bodies one generator may make.
 pub(super) const MAX_GENERATED: u64 = 10_000_000;
 
+/// The positions of a generator's bodies, at most `room` of them (what the world's
+/// `bodies` limit leaves), checked before any is made.
 pub(super) fn generate(
     g: &RawGenerator,
     shape: Shape,
+    room: u64,
 ) -> Result<Vec<DVec2>, (&'static str, String)> {
     let need = |field: &'static str, v: Option<u32>| {
         v.ok_or((
@@ -32,6 +35,13 @@ pub(super) fn generate(
     let count_check = |n: u64| {
         if n > MAX_GENERATED {
             Err(("count", format!("{n} bodies is more than {MAX_GENERATED}")))
+        } else if n > room {
+            Err((
+                "count",
+                format!(
+                    "{n} bodies would exceed the world's limit (limits.bodies): room for {room}"
+                ),
+            ))
         } else {
             Ok(())
         }

@@ -7,6 +7,9 @@
 //! gravity = [0, -50]
 //! relaxation_iterations = 15
 //!
+//! [limits]                     # optional: lower the runner's limits for this world
+//! bodies = 500
+//!
 //! [[body]]
 //! id = "hero"
 //! group = "hero"
@@ -39,7 +42,7 @@ use crate::behavior::{self, Behavior, Held};
 use crate::dynamics::body::BodyDef;
 use crate::geometry::Shape;
 use crate::particles::ParticleDef;
-use crate::world::World;
+use crate::world::{Limits, World};
 
 mod generate;
 mod raw;
@@ -70,9 +73,22 @@ pub fn load(path: &Path) -> Result<World, SceneError> {
     parse(&text, path, &[])
 }
 
-/// Builds a scene from its text; `file` names it in errors. `overrides` are `NAME=VALUE`
-/// assignments to `[world]` fields applied after the file's (the `--set` flag).
+/// Builds a scene from its text under the default [`Limits`]; `file` names it in errors.
+/// `overrides` are `NAME=VALUE` assignments to `[world]` fields applied after the file's
+/// (the `--set` flag).
 pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, SceneError> {
+    parse_with(text, file, overrides, &Limits::default())
+}
+
+/// [`parse`] under the limits `ceiling`: the scene's `[limits]` table may lower them,
+/// never raise them, and the scene must fit them (bodies, particles, emitters, groups,
+/// presets, and the estimated work of a step).
+pub fn parse_with(
+    text: &str,
+    file: &Path,
+    overrides: &[String],
+    ceiling: &Limits,
+) -> Result<World, SceneError> {
     let ctx = Ctx { text, file };
     let scene: SceneFile = toml::from_str(text).map_err(|e| ctx.parse_error(&e))?;
 
@@ -102,18 +118,20 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         })?;
     }
 
-    let mut world = World::new(config);
+    let limits = match &scene.limits {
+        None => ceiling.clone(),
+        Some(table) => read_limits(table, ceiling, &ctx)?,
+    };
+    let mut world = World::with_limits(config, limits);
 
     for (name, preset) in &scene.preset {
+        let table = format!("preset.{name}");
         if let Some(field) = preset.get_ref().non_finite_field() {
-            return Err(ctx.field_error(
-                &format!("preset.{name}"),
-                preset.span(),
-                field,
-                "is not finite",
-            ));
+            return Err(ctx.field_error(&table, preset.span(), field, "is not finite"));
         }
-        world.presets_mut().insert(name, preset.get_ref().clone());
+        world
+            .add_preset(name, preset.get_ref().clone())
+            .map_err(|e| ctx.field_error(&table, preset.span(), "rand", &e.to_string()))?;
     }
 
     for (i, raw) in scene.body.iter().enumerate() {
@@ -144,8 +162,8 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         let g = raw.get_ref();
         let shape = shape_of(g.shape, g.size, g.radius)
             .map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
-        let positions =
-            generate(g, shape).map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
+        let positions = generate(g, shape, world.room_for_bodies())
+            .map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
         for (k, pos) in positions.into_iter().enumerate() {
             let def = BodyDef {
                 id: format!("{}/{k}", g.id),
@@ -179,7 +197,9 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         def.validate().map_err(|e| {
             ctx.field_error(&format!("particle[{i}]"), raw.span(), e.field, &e.reason)
         })?;
-        world.add_particle(&def).expect("validated above");
+        world.add_particle(&def).map_err(|e| {
+            ctx.field_error(&format!("particle[{i}]"), raw.span(), "pos", &e.to_string())
+        })?;
     }
 
     for (i, raw) in scene.emitter.iter().enumerate() {
@@ -196,7 +216,13 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
         }
         world
             .add_emitter(&e.preset, e.count, Vec2::from(e.pos))
-            .map_err(|err| ctx.field_error(&table, raw.span(), "pos", &err.to_string()))?;
+            .map_err(|err| {
+                let field = match err {
+                    crate::world::WorldError::Limit(_) => "count",
+                    _ => "pos",
+                };
+                ctx.field_error(&table, raw.span(), field, &err.to_string())
+            })?;
     }
 
     for (i, raw) in scene.interact.iter().enumerate() {
@@ -207,7 +233,37 @@ pub fn parse(text: &str, file: &Path, overrides: &[String]) -> Result<World, Sce
                 ctx.field_error(&format!("interact[{i}]"), raw.span(), "b", &e.to_string())
             })?;
     }
+    world.check_work(&world.config).map_err(|e| {
+        let span = scene.world.as_ref().map(|t| t.span()).unwrap_or(0..0);
+        ctx.field_error("world", span, "solver", &e.to_string())
+    })?;
     Ok(world)
+}
+
+/// The scene's `[limits]` over `ceiling`: each named value must be valid and no higher.
+fn read_limits(
+    table: &toml::Spanned<toml::Table>,
+    ceiling: &Limits,
+    ctx: &Ctx,
+) -> Result<Limits, SceneError> {
+    let err =
+        |field: &str, message: String| ctx.field_error("limits", table.span(), field, &message);
+    let assignments: Vec<String> = table
+        .get_ref()
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect();
+    let limits = ceiling.with(&assignments).map_err(|e| match &e {
+        crate::world::LimitError::Invalid { name, .. } => err(name, e.to_string()),
+        other => err("limits", other.to_string()),
+    })?;
+    if let Some((name, asked, max)) = limits.above(ceiling) {
+        return Err(err(
+            name,
+            format!("{asked} is above the runner's limit of {max}; a scene may only lower it"),
+        ));
+    }
+    Ok(limits)
 }
 
 fn add(
@@ -342,11 +398,12 @@ impl Ctx<'_> {
             }
             None => (0, backticked(e.message()).unwrap_or("scene").to_string()),
         };
+        // A line of the file stands in for a field name only cut short.
         SceneError {
             file: self.file.to_path_buf(),
             line,
-            field,
-            message: e.message().trim().to_string(),
+            field: crate::world::short(&field, 64),
+            message: crate::world::short(e.message().trim(), 300),
         }
     }
 }

@@ -15,6 +15,9 @@ use crate::particles::ParticlePreset;
 pub(super) struct SceneFile {
     #[serde(default)]
     pub(super) world: Option<Spanned<WorldConfig>>,
+    /// Read over the ceiling's values (see [`crate::world::Limits`]).
+    #[serde(default)]
+    pub(super) limits: Option<Spanned<toml::Table>>,
     #[serde(default)]
     pub(super) preset: BTreeMap<String, Spanned<ParticlePreset>>,
     #[serde(default)]

@@ -5,17 +5,19 @@ use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::action::{Action, ActionError, ActionOutcome, MinionShape, MAX_PARTICLES_PER_ACTION};
+use crate::action::{Action, ActionError, ActionOutcome, MinionShape};
 use crate::behavior::{self, Behavior};
 use crate::dynamics::body::BodyDef;
 use crate::geometry::Shape;
 use crate::particles::Emitter;
 
-use super::World;
+use super::{short, LimitError, World};
 
 impl World {
-    /// Applies an action between steps. A refused action changes nothing.
+    /// Applies an action between steps. A refused action changes nothing: every check
+    /// runs first ([`World::check`]), and only an accepted action wakes sleeping bodies.
     pub fn apply(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
+        self.check(action)?;
         // Anything that moves bodies or changes the world's parameters wakes it.
         if !matches!(
             action,
@@ -26,20 +28,103 @@ impl World {
         ) {
             self.wake_all();
         }
-        let point = |field: &'static str, p: [f64; 2]| -> Result<DVec2, ActionError> {
-            let v = DVec2::from(p);
-            if v.is_finite() && v.abs().max_element() <= crate::dynamics::body::MAX_COORDINATE {
-                Ok(v)
-            } else {
-                Err(ActionError::BadArgument {
-                    field,
-                    reason: format!(
-                        "{v} must be finite and within ±{}",
-                        crate::dynamics::body::MAX_COORDINATE
-                    ),
-                })
-            }
+        self.execute(action)
+    }
+
+    /// Whether `action` would be accepted now, and if not why; changes nothing.
+    pub fn check(&self, action: &Action) -> Result<(), ActionError> {
+        let group = |name: &str| {
+            self.group(name)
+                .ok_or_else(|| ActionError::UnknownGroup(short(name, MAX_ECHO)))
         };
+        let preset = |name: &str| {
+            self.presets
+                .get(name)
+                .map(|_| ())
+                .ok_or_else(|| self.unknown_preset(name))
+        };
+        let spawn = |group: &str| -> Result<(), ActionError> {
+            self.check_new_bodies(1)?;
+            self.check_new_group(group)?;
+            Ok(())
+        };
+        match action {
+            Action::Press { .. } | Action::Release { .. } => {
+                self.hero().ok_or(ActionError::NoHero)?;
+            }
+            Action::FireDyePack { at } => {
+                point("at", *at)?;
+                spawn("dye_packs")?;
+            }
+            Action::SpawnMinion { at, .. } => {
+                point("at", *at)?;
+                spawn("minions")?;
+            }
+            Action::SpawnDumbMinion { at } => {
+                point("at", *at)?;
+                spawn("dumb_minions")?;
+            }
+            Action::Select { at, group: g } => {
+                point("at", *at)?;
+                if let Some(name) = g {
+                    group(name)?;
+                }
+            }
+            Action::Drag { to } => {
+                point("to", *to)?;
+                let key = self.selected.ok_or(ActionError::NothingSelected)?;
+                self.by_key.get(&key).ok_or(ActionError::NothingSelected)?;
+            }
+            Action::Deselect => {}
+            Action::Agitate { strength } => {
+                let s = strength.unwrap_or(behavior::DEFAULT_AGITATION);
+                if !(0.0..=crate::dynamics::body::MAX_COORDINATE).contains(&s) {
+                    return Err(ActionError::BadArgument {
+                        field: "strength",
+                        reason: format!(
+                            "{s} must be a number from 0 to {}",
+                            crate::dynamics::body::MAX_COORDINATE
+                        ),
+                    });
+                }
+            }
+            Action::Clear { group: g } => {
+                group(g)?;
+            }
+            Action::SpawnParticles {
+                preset: p,
+                at,
+                count,
+            } => {
+                point("at", *at)?;
+                preset(p)?;
+                self.check_new_particles(*count as u64)
+                    .map_err(count_error)?;
+            }
+            Action::StartEmitter {
+                preset: p,
+                count,
+                at,
+            } => {
+                point("at", *at)?;
+                preset(p)?;
+                self.check_new_emitter(*count).map_err(count_error)?;
+            }
+            Action::Set(setting) => {
+                let mut next = self.config.clone();
+                next.set(setting.clone())?;
+                self.check_work(&next)
+                    .map_err(|e| ActionError::BadArgument {
+                        field: "value",
+                        reason: e.to_string(),
+                    })?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Applies an action [`World::check`] accepted.
+    fn execute(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
         let none = Ok(ActionOutcome::default());
         match action {
             Action::Press { dir } | Action::Release { dir } => {
@@ -120,7 +205,7 @@ impl World {
                 let group = match group {
                     Some(name) => Some(
                         self.group(name)
-                            .ok_or_else(|| ActionError::UnknownGroup(name.clone()))?,
+                            .ok_or_else(|| ActionError::UnknownGroup(short(name, MAX_ECHO)))?,
                     ),
                     None => None,
                 };
@@ -157,12 +242,6 @@ impl World {
             }
             Action::Agitate { strength } => {
                 let s = strength.unwrap_or(behavior::DEFAULT_AGITATION);
-                if !(0.0..=crate::dynamics::body::MAX_COORDINATE).contains(&s) {
-                    return Err(ActionError::BadArgument {
-                        field: "strength",
-                        reason: format!("{s} must be a finite number, 0 or above"),
-                    });
-                }
                 let mut ids = Vec::new();
                 for (b, info) in self.bodies.iter_mut().zip(&self.infos) {
                     if matches!(info.behavior, Behavior::DumbMinion) && !b.is_static() {
@@ -179,7 +258,7 @@ impl World {
             Action::Clear { group } => {
                 let g = self
                     .group(group)
-                    .ok_or_else(|| ActionError::UnknownGroup(group.clone()))?;
+                    .ok_or_else(|| ActionError::UnknownGroup(short(group, MAX_ECHO)))?;
                 let ids = self
                     .bodies
                     .iter()
@@ -192,7 +271,6 @@ impl World {
             }
             Action::SpawnParticles { preset, at, count } => {
                 let at = point("at", *at)?.as_vec2();
-                check_count(*count)?;
                 let gravity = self.config.particle_gravity.as_vec2();
                 let recipe = self
                     .presets
@@ -206,7 +284,6 @@ impl World {
             }
             Action::StartEmitter { preset, count, at } => {
                 let at = point("at", *at)?.as_vec2();
-                check_count(*count)?;
                 if self.presets.get(preset).is_none() {
                     return Err(self.unknown_preset(preset));
                 }
@@ -219,7 +296,14 @@ impl World {
             }
             Action::Set(setting) => {
                 let before = self.config.seed;
-                self.config.set(setting.clone())?;
+                let mut next = self.config.clone();
+                next.set(setting.clone())?;
+                self.check_work(&next)
+                    .map_err(|e| ActionError::BadArgument {
+                        field: "value",
+                        reason: e.to_string(),
+                    })?;
+                self.config = next;
                 if self.config.seed != before {
                     self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
                 }
@@ -239,18 +323,38 @@ impl World {
 
     pub(super) fn unknown_preset(&self, name: &str) -> ActionError {
         ActionError::UnknownPreset {
-            name: name.to_string(),
-            known: self.presets.names().collect::<Vec<_>>().join(", "),
+            name: short(name, MAX_ECHO),
+            known: short(
+                &self.presets.names().collect::<Vec<_>>().join(", "),
+                4 * MAX_ECHO,
+            ),
         }
     }
 }
 
-fn check_count(count: u32) -> Result<(), ActionError> {
-    if count > MAX_PARTICLES_PER_ACTION {
-        return Err(ActionError::BadArgument {
-            field: "count",
-            reason: format!("{count} is more than {MAX_PARTICLES_PER_ACTION} particles at once"),
-        });
+/// Bytes of a client's text (a group or preset name) echoed in a refusal at most.
+pub const MAX_ECHO: usize = 64;
+
+/// A point argument: finite and within the engine's coordinates.
+fn point(field: &'static str, p: [f64; 2]) -> Result<DVec2, ActionError> {
+    let v = DVec2::from(p);
+    if v.is_finite() && v.abs().max_element() <= crate::dynamics::body::MAX_COORDINATE {
+        Ok(v)
+    } else {
+        Err(ActionError::BadArgument {
+            field,
+            reason: format!(
+                "{v} must be finite and within ±{}",
+                crate::dynamics::body::MAX_COORDINATE
+            ),
+        })
     }
-    Ok(())
+}
+
+/// A limit on particles, refused as the action's `count`.
+fn count_error(e: LimitError) -> ActionError {
+    ActionError::BadArgument {
+        field: "count",
+        reason: e.to_string(),
+    }
 }

@@ -85,10 +85,12 @@ impl World {
         }
         for key in &hits {
             let pos = self.body_by_key(*key).expect("hit is alive").pos;
+            // An explosion is skipped where the world's limits leave no room for it.
             if self
                 .presets
                 .get(behavior::DYE_PACK_EXPLOSION_PRESET)
                 .is_some()
+                && self.check_new_emitter(behavior::DYE_PACK_EXPLOSION).is_ok()
             {
                 self.emitters.push(Emitter {
                     pos: pos.as_vec2(),

@@ -28,8 +28,11 @@ use crate::particles::{Emitter, Particles, PresetLibrary};
 mod actions;
 mod candidates;
 mod demo;
+mod limits;
 mod step;
 mod store;
+
+pub use limits::{short, LimitError, Limits, LIMIT_NAMES};
 
 /// Particle interactions with at least this many shapes bin them in a grid.
 pub const PARTICLE_GRID_MIN_SHAPES: usize = 8;
@@ -106,12 +109,16 @@ pub enum WorldError {
     UnknownPreset(String),
     #[error("interaction: {0}")]
     Interaction(String),
+    #[error(transparent)]
+    Limit(#[from] LimitError),
 }
 
 /// A simulated world.
 #[derive(Clone, Debug)]
 pub struct World {
     pub config: WorldConfig,
+    /// What the world may hold and a step may cost.
+    limits: Limits,
     /// The bodies' hot data, and their ids and behaviours at the same indices.
     bodies: Vec<Body>,
     infos: Vec<BodyInfo>,
@@ -157,11 +164,18 @@ pub struct World {
 }
 
 impl World {
-    /// An empty world with the given parameters and the built-in presets.
+    /// An empty world with the given parameters, the default [`Limits`] and the built-in
+    /// presets.
     pub fn new(config: WorldConfig) -> Self {
+        Self::with_limits(config, Limits::default())
+    }
+
+    /// An empty world with the given parameters and limits, and the built-in presets.
+    pub fn with_limits(config: WorldConfig, limits: Limits) -> Self {
         let rng = ChaCha8Rng::seed_from_u64(config.seed);
         World {
             config,
+            limits,
             bodies: Vec::new(),
             infos: Vec::new(),
             groups: Vec::new(),
@@ -232,8 +246,25 @@ impl World {
         &self.presets
     }
 
-    pub fn presets_mut(&mut self) -> &mut PresetLibrary {
-        &mut self.presets
+    /// What the world may hold and a step may cost.
+    pub fn limits(&self) -> &Limits {
+        &self.limits
+    }
+
+    /// How many more bodies the `bodies` limit allows.
+    pub fn room_for_bodies(&self) -> u64 {
+        (self.limits.bodies as u64).saturating_sub(self.bodies.len() as u64)
+    }
+
+    /// Particles alive plus those still to come from running emitters: what the
+    /// `particles` limit bounds.
+    pub fn particles_committed(&self) -> u64 {
+        self.particles.len() as u64
+            + self
+                .emitters
+                .iter()
+                .map(|e| e.remaining as u64)
+                .sum::<u64>()
     }
 
     /// The figures of the last step.

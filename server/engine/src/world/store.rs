@@ -5,21 +5,90 @@ use glam::Vec2;
 
 use crate::behavior::Behavior;
 use crate::dynamics::body::{Body, BodyDef, BodyKey, GroupId};
-use crate::particles::{Emitter, ParticleDef};
+use crate::particles::{Emitter, ParticleDef, ParticlePreset};
 
-use super::{BodyInfo, Group, Interaction, Side, World, WorldError, PARTICLES};
+use super::{BodyInfo, Group, Interaction, LimitError, Side, World, WorldError, PARTICLES};
 
 impl World {
-    /// The group's id, creating the group if needed.
-    pub fn group_or_insert(&mut self, name: &str) -> GroupId {
+    /// The group's id, creating the group if needed (within the `groups` limit).
+    pub fn group_or_insert(&mut self, name: &str) -> Result<GroupId, WorldError> {
         if let Some(g) = self.group(name) {
-            return g;
+            return Ok(g);
         }
+        self.check_new_group(name)?;
         self.groups.push(Group {
             name: name.to_string(),
             members: Vec::new(),
         });
-        (self.groups.len() - 1) as GroupId
+        Ok((self.groups.len() - 1) as GroupId)
+    }
+
+    /// Refuses a group that would be one too many.
+    pub(super) fn check_new_group(&self, name: &str) -> Result<(), LimitError> {
+        if self.group(name).is_none() && self.groups.len() as u64 >= self.limits.groups as u64 {
+            return Err(LimitError::exceeded("groups", "groups", self.limits.groups));
+        }
+        Ok(())
+    }
+
+    /// Refuses `n` more bodies if they would be too many.
+    pub(super) fn check_new_bodies(&self, n: u64) -> Result<(), LimitError> {
+        if self.bodies.len() as u64 + n > self.limits.bodies as u64 {
+            return Err(LimitError::exceeded("bodies", "bodies", self.limits.bodies));
+        }
+        Ok(())
+    }
+
+    /// Refuses `n` more particles (alive or to come) if they would be too many.
+    pub(super) fn check_new_particles(&self, n: u64) -> Result<(), LimitError> {
+        if n > self.limits.particles_per_action as u64 {
+            return Err(LimitError::exceeded(
+                "particles_per_action",
+                "particles at once",
+                self.limits.particles_per_action,
+            ));
+        }
+        if self.particles_committed() + n > self.limits.particles as u64 {
+            return Err(LimitError::exceeded(
+                "particles",
+                "particles (alive and to come from emitters)",
+                self.limits.particles,
+            ));
+        }
+        Ok(())
+    }
+
+    /// Refuses one more emitter of `count` particles if it would exceed a limit.
+    pub(super) fn check_new_emitter(&self, count: u32) -> Result<(), LimitError> {
+        if self.emitters.len() as u64 >= self.limits.emitters as u64 {
+            return Err(LimitError::exceeded(
+                "emitters",
+                "emitters",
+                self.limits.emitters,
+            ));
+        }
+        self.check_new_particles(count as u64)
+    }
+
+    /// Adds or replaces a particle preset, within the `presets` and `rand_terms` limits.
+    pub fn add_preset(&mut self, name: &str, preset: ParticlePreset) -> Result<(), WorldError> {
+        if self.presets.get(name).is_none()
+            && self.presets.len() as u64 >= self.limits.presets as u64
+        {
+            return Err(LimitError::exceeded("presets", "presets", self.limits.presets).into());
+        }
+        if let Some((field, n)) = preset.too_many_rand_terms(self.limits.rand_terms as usize) {
+            return Err(LimitError::Invalid {
+                name: "rand_terms".into(),
+                reason: format!(
+                    "`{field}` draws {n} random terms, over the world's limit of {}",
+                    self.limits.rand_terms
+                ),
+            }
+            .into());
+        }
+        self.presets.insert(name, preset);
+        Ok(())
     }
 
     /// Adds a body. Its id must be unique; every number is checked.
@@ -31,7 +100,8 @@ impl World {
         if self.by_id.contains_key(&def.id) {
             return Err(WorldError::DuplicateId(def.id));
         }
-        let group = self.group_or_insert(&def.group);
+        self.check_new_bodies(1)?;
+        let group = self.group_or_insert(&def.group)?;
         let key = BodyKey(self.next_key);
         self.next_key += 1;
         let index = self.bodies.len() as u32;
@@ -72,6 +142,7 @@ impl World {
     /// Adds a particle.
     pub fn add_particle(&mut self, def: &ParticleDef) -> Result<(), WorldError> {
         def.validate()?;
+        self.check_new_particles(1)?;
         self.particles
             .push(def, self.config.particle_gravity.as_vec2());
         Ok(())
@@ -87,6 +158,7 @@ impl World {
                 "emitter position {pos} is not finite"
             )));
         }
+        self.check_new_emitter(count)?;
         self.emitters.push(Emitter {
             pos,
             remaining: count,
@@ -97,14 +169,22 @@ impl World {
 
     /// Declares an interaction between two groups, or a group and [`PARTICLES`].
     pub fn add_interaction(&mut self, a: &str, b: &str, resolve: bool) -> Result<(), WorldError> {
-        let side = |w: &mut World, name: &str| {
-            if name == PARTICLES {
+        if self.interactions.len() as u64 >= self.limits.interactions as u64 {
+            return Err(LimitError::exceeded(
+                "interactions",
+                "interactions",
+                self.limits.interactions,
+            )
+            .into());
+        }
+        let side = |w: &mut World, name: &str| -> Result<Side, WorldError> {
+            Ok(if name == PARTICLES {
                 Side::Particles
             } else {
-                Side::Group(w.group_or_insert(name))
-            }
+                Side::Group(w.group_or_insert(name)?)
+            })
         };
-        let (sa, sb) = (side(self, a), side(self, b));
+        let (sa, sb) = (side(self, a)?, side(self, b)?);
         if sa == Side::Particles && sb == Side::Particles {
             return Err(WorldError::Interaction(
                 "particles do not collide with each other; pair `particles` with a group of bodies"
