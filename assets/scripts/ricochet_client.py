@@ -171,11 +171,20 @@ class FrameDecoder:
 
 
 def open_session(args):
+    """A zenoh session: from --config FILE (json5, as the Rust binaries read it) with the
+    flags given merged over it, or else peer mode to the default endpoint."""
     import zenoh
-    conf = zenoh.Config()
-    conf.insert_json5("mode", json.dumps(args.mode))
-    conf.insert_json5("connect/endpoints", json.dumps(args.connect or ["tcp/127.0.0.1:7447"]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
+    if args.config:
+        conf = zenoh.Config.from_file(args.config)
+        if args.mode:
+            conf.insert_json5("mode", json.dumps(args.mode))
+        if args.connect:
+            conf.insert_json5("connect/endpoints", json.dumps(args.connect))
+    else:
+        conf = zenoh.Config()
+        conf.insert_json5("mode", json.dumps(args.mode or "peer"))
+        conf.insert_json5("connect/endpoints", json.dumps(args.connect or ["tcp/127.0.0.1:7447"]))
+        conf.insert_json5("scouting/multicast/enabled", "false")
     return zenoh.open(conf)
 
 
@@ -239,7 +248,9 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--world", default="default")
     ap.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
-    ap.add_argument("--mode", default="peer", choices=["peer", "client"])
+    ap.add_argument("--mode", choices=["peer", "client"], help="peer (the default) or client")
+    ap.add_argument("--config", metavar="FILE",
+                    help="a zenoh configuration file (json5), e.g. assets/zenoh/client.json5; the flags given override it")
     ap.add_argument("--timeout", type=float, default=5.0)
     sub = ap.add_subparsers(dest="cmd", required=True)
     send = sub.add_parser("send", help="send one command and print the reply")

@@ -2,7 +2,10 @@
 //! server, the viewer and the CLI share ([`NetworkArgs`]), the zenoh session they build
 //! from it ([`Network::open`]), and the one tracing set-up ([`init_tracing`]).
 //!
-//! Flags flow in; a configured zenoh session flows out.
+//! Flags (and optionally a zenoh configuration file, json5, the format of zenoh's own
+//! tools) flow in; a configured zenoh session flows out.
+
+use std::path::PathBuf;
 
 use anyhow::{anyhow, Result};
 use zenoh::{Session, Wait};
@@ -43,18 +46,26 @@ pub struct NetworkArgs {
     /// Endpoint of a peer or router to connect to, e.g. tcp/10.0.0.5:7447. Repeatable.
     #[arg(long, global = true, value_name = "ENDPOINT")]
     pub connect: Vec<String>,
-    /// peer (talk to peers directly), client (only through a router) or router.
-    #[arg(long, global = true, value_enum, default_value_t = Mode::Peer)]
-    pub mode: Mode,
+    /// peer (talk to peers directly; the default), client (only through a router) or
+    /// router.
+    #[arg(long, global = true, value_enum)]
+    pub mode: Option<Mode>,
     /// Also discover peers by multicast scouting (off: explicit endpoints only).
     #[arg(long, global = true)]
     pub multicast: bool,
+    /// A zenoh configuration file (json5, as zenoh's own tools read): credentials, TLS,
+    /// access control, anything zenoh offers. The flags given are merged over it; with a
+    /// file, nothing else is assumed (no default endpoint, mode or scouting), so the file
+    /// says how to connect. See assets/zenoh/ and docs/security.md.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub config: Option<PathBuf>,
 }
 
 impl NetworkArgs {
-    /// A server's network: with no endpoint given, listen on the default one.
+    /// A server's network: with no endpoint given (and no configuration file), listen on
+    /// the default one.
     pub fn server(self) -> Network {
-        let listen = if self.listen.is_empty() && self.connect.is_empty() {
+        let listen = if self.listen.is_empty() && self.connect.is_empty() && self.config.is_none() {
             vec![DEFAULT_ENDPOINT.to_string()]
         } else {
             self.listen
@@ -64,12 +75,15 @@ impl NetworkArgs {
             connect: self.connect,
             listen,
             multicast: self.multicast,
+            config: self.config,
         }
     }
 
-    /// A client's network: with no endpoint given, connect to the default one.
+    /// A client's network: with no endpoint given (and no configuration file), connect to
+    /// the default one.
     pub fn client(self) -> Network {
-        let connect = if self.listen.is_empty() && self.connect.is_empty() {
+        let connect = if self.listen.is_empty() && self.connect.is_empty() && self.config.is_none()
+        {
             vec![DEFAULT_ENDPOINT.to_string()]
         } else {
             self.connect
@@ -79,6 +93,7 @@ impl NetworkArgs {
             connect,
             listen: self.listen,
             multicast: self.multicast,
+            config: self.config,
         }
     }
 }
@@ -86,53 +101,84 @@ impl NetworkArgs {
 /// Where and how a session connects.
 #[derive(Clone, Debug, Default)]
 pub struct Network {
-    pub mode: Mode,
+    /// The mode; `None` is peer, or the configuration file's.
+    pub mode: Option<Mode>,
     /// Endpoints to connect to (`tcp/host:port`).
     pub connect: Vec<String>,
     /// Endpoints to listen on.
     pub listen: Vec<String>,
     /// Multicast scouting (off by default: explicit endpoints only).
     pub multicast: bool,
+    /// A zenoh configuration file (json5) the rest is merged over.
+    pub config: Option<PathBuf>,
 }
 
 impl Network {
     /// A client's network: connect to `connect`, or to the default endpoint.
     pub fn client(mode: Mode, connect: Vec<String>) -> Self {
         NetworkArgs {
-            mode,
+            mode: Some(mode),
             connect,
             ..NetworkArgs::default()
         }
         .client()
     }
 
-    /// The zenoh configuration.
+    /// The mode's name for logs: as given, or the file's, or peer.
+    pub fn mode_name(&self) -> &'static str {
+        match (self.mode, &self.config) {
+            (Some(mode), _) => mode.name(),
+            (None, Some(_)) => "from the configuration file",
+            (None, None) => Mode::Peer.name(),
+        }
+    }
+
+    /// The zenoh configuration: the file's (or zenoh's defaults), then the flags. Without
+    /// a file, Ricochet's defaults: peer mode, no multicast scouting, endpoints retried
+    /// until they come up. With one, only what was given overrides it.
     pub fn config(&self) -> Result<zenoh::Config> {
-        let mut config = zenoh::Config::default();
+        let mut config = match &self.config {
+            Some(path) => zenoh::Config::from_file(path)
+                .map_err(|e| anyhow!("zenoh configuration file {}: {e}", path.display()))?,
+            None => zenoh::Config::default(),
+        };
+        let defaults = self.config.is_none();
         let set = |config: &mut zenoh::Config, key: &str, value: serde_json::Value| {
             config
                 .insert_json5(key, &value.to_string())
                 .map_err(|e| anyhow!("zenoh configuration {key} = {value}: {e}"))
         };
-        set(&mut config, "mode", serde_json::json!(self.mode.name()))?;
-        set(
-            &mut config,
-            "connect/endpoints",
-            serde_json::json!(self.connect),
-        )?;
-        set(
-            &mut config,
-            "listen/endpoints",
-            serde_json::json!(self.listen),
-        )?;
-        set(
-            &mut config,
-            "scouting/multicast/enabled",
-            serde_json::json!(self.multicast),
-        )?;
-        // Keep retrying a connect endpoint that is not up yet, so a client may start
-        // before its server or router.
-        set(&mut config, "connect/timeout_ms", serde_json::json!(-1))?;
+        match self.mode {
+            Some(mode) => set(&mut config, "mode", serde_json::json!(mode.name()))?,
+            None if defaults => set(&mut config, "mode", serde_json::json!("peer"))?,
+            None => {}
+        }
+        if defaults || !self.connect.is_empty() {
+            set(
+                &mut config,
+                "connect/endpoints",
+                serde_json::json!(self.connect),
+            )?;
+        }
+        if defaults || !self.listen.is_empty() {
+            set(
+                &mut config,
+                "listen/endpoints",
+                serde_json::json!(self.listen),
+            )?;
+        }
+        if defaults || self.multicast {
+            set(
+                &mut config,
+                "scouting/multicast/enabled",
+                serde_json::json!(self.multicast),
+            )?;
+        }
+        if defaults {
+            // Keep retrying a connect endpoint that is not up yet, so a client may start
+            // before its server or router.
+            set(&mut config, "connect/timeout_ms", serde_json::json!(-1))?;
+        }
         Ok(config)
     }
 
@@ -140,10 +186,14 @@ impl Network {
     pub fn open(&self) -> Result<Session> {
         zenoh::open(self.config()?).wait().map_err(|e| {
             anyhow!(
-                "cannot open a zenoh session ({} mode, connect {:?}, listen {:?}): {e}",
-                self.mode.name(),
+                "cannot open a zenoh session ({} mode, connect {:?}, listen {:?}{}): {e}",
+                self.mode_name(),
                 self.connect,
-                self.listen
+                self.listen,
+                self.config
+                    .as_ref()
+                    .map(|p| format!(", configuration {}", p.display()))
+                    .unwrap_or_default()
             )
         })
     }
@@ -191,7 +241,7 @@ mod tests {
     #[test]
     fn flags_override_the_defaults() {
         let n = flags(&["--mode", "client", "--connect", "tcp/10.0.0.5:7447"]).server();
-        assert_eq!(n.mode, Mode::Client);
+        assert_eq!(n.mode, Some(Mode::Client));
         assert!(n.listen.is_empty());
         assert_eq!(n.connect, ["tcp/10.0.0.5:7447"]);
         let e = Flags::try_parse_from(["x", "--mode", "satellite"])
@@ -199,5 +249,35 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(e.contains("satellite"), "{e}");
+    }
+
+    #[test]
+    fn a_configuration_file_is_read_and_only_given_flags_override_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("z.json5");
+        std::fs::write(
+            &file,
+            r#"{ mode: "client", connect: { endpoints: ["tcp/127.0.0.1:9"] },
+                 scouting: { multicast: { enabled: false } } }"#,
+        )
+        .unwrap();
+        let path = file.to_str().unwrap();
+        let n = flags(&["--config", path]).client();
+        assert!(n.connect.is_empty(), "no default endpoint with a file");
+        let c = n.config().unwrap();
+        assert_eq!(c.get_json("mode").unwrap(), "\"client\"");
+        assert_eq!(
+            c.get_json("connect/endpoints").unwrap(),
+            r#"["tcp/127.0.0.1:9"]"#
+        );
+        let n = flags(&["--config", path, "--connect", "tcp/127.0.0.1:10"]).client();
+        let c = n.config().unwrap();
+        assert_eq!(
+            c.get_json("connect/endpoints").unwrap(),
+            r#"["tcp/127.0.0.1:10"]"#
+        );
+        std::fs::write(&file, "{ mode: ").unwrap();
+        let e = flags(&["--config", path]).client().config().unwrap_err();
+        assert!(e.to_string().contains("z.json5"), "{e}");
     }
 }

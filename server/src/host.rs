@@ -294,7 +294,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     tracing::info!(
         world = %opts.world,
         scene = %opts.scene.display(),
-        mode = opts.network.mode.name(),
+        mode = opts.network.mode_name(),
         listen = ?opts.network.listen,
         connect = ?opts.network.connect,
         paused = host.paused,

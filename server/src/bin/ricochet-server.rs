@@ -262,7 +262,7 @@ fn main() -> Result<()> {
         }
         Command::Router { network } => {
             let mut net = network.server();
-            net.mode = Mode::Router;
+            net.mode = Some(Mode::Router);
             host::run_router(&net)
         }
         Command::Simulate(args) => simulate(args),
