@@ -242,7 +242,13 @@ fn only_authorised_peers_act_through_the_secured_router() {
             .expect("python3 runs")
     };
     let out = ok(&py("client"));
-    assert!(out.contains("\"ok\": true") || out.contains("\"ok\":true"), "{out}");
+    assert!(
+        out.contains("\"ok\": true") || out.contains("\"ok\":true"),
+        "{out}"
+    );
     let out = py("viewer");
-    assert!(!out.status.success(), "the Python viewer's request was answered");
+    assert!(
+        !out.status.success(),
+        "the Python viewer's request was answered"
+    );
 }

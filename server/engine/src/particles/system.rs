@@ -141,6 +141,19 @@ pub struct Particles {
 }
 
 impl Particles {
+    /// Gives the living particles the ids 0, 1, .. in their order.
+    fn renumber(&mut self) {
+        for (k, id) in self.id.iter_mut().enumerate() {
+            *id = k as u32;
+        }
+        self.next_id = self.id.len() as u32;
+    }
+
+    #[cfg(test)]
+    pub(crate) fn set_next_id(&mut self, id: u32) {
+        self.next_id = id;
+    }
+
     pub fn len(&self) -> usize {
         self.x.len()
     }
@@ -151,10 +164,17 @@ impl Particles {
 
     /// Adds a particle; `gravity` is the world's particle gravity, used unless the
     /// definition overrides it.
+    ///
+    /// Ids increase in creation order; when they would pass `u32::MAX` (four billion
+    /// particles into a run), the living particles are renumbered 0, 1, .. in the same
+    /// order, so ids never wrap (receivers see every particle replaced once).
     pub fn push(&mut self, def: &ParticleDef, gravity: Vec2) {
         let a = def.gravity.unwrap_or(gravity);
+        if self.next_id == u32::MAX {
+            self.renumber();
+        }
         self.id.push(self.next_id);
-        self.next_id = self.next_id.wrapping_add(1);
+        self.next_id += 1;
         self.x.push(def.pos.x);
         self.y.push(def.pos.y);
         self.vx.push(def.vel.x);
@@ -311,6 +331,21 @@ mod tests {
         let mut p = Particles::default();
         p.push(&def, Vec2::new(0.0, -50.0));
         p
+    }
+
+    #[test]
+    fn ids_never_wrap_they_are_renumbered_in_order() {
+        let mut p = Particles::default();
+        let def = ParticleDef {
+            life: 100.0,
+            ..Default::default()
+        };
+        p.set_next_id(u32::MAX - 2);
+        for _ in 0..5 {
+            p.push(&def, Vec2::ZERO);
+        }
+        assert_eq!(p.id, [0, 1, 2, 3, 4]);
+        assert!(p.id.windows(2).all(|w| w[0] < w[1]));
     }
 
     #[test]
