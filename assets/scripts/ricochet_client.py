@@ -99,7 +99,8 @@ class FrameDecoder:
         for _ in range(r.varint()):
             x, y = r.unpack("<ff")
             emitters.append({"x": x, "y": y, "remaining": r.varint()})
-        bodies = {} if kind != KIND_DELTA else {k: dict(v) for k, v in self.bodies.items()}
+        # Copies on write: a payload refused half-way leaves the state held untouched.
+        bodies = {} if kind != KIND_DELTA else dict(self.bodies)
         key = 0
         for _ in range(r.varint()):
             key += r.varint()
@@ -118,12 +119,13 @@ class FrameDecoder:
                 b = bodies.get(key)
                 if b is None:
                     raise DecodeError(f"update of unknown body {key}")
+                b = bodies[key] = dict(b)
                 if flags & POS:
                     b["qpos"] = [b["qpos"][0] + r.svarint(), b["qpos"][1] + r.svarint()]
                 if flags & VEL:
                     b["qvel"] = [b["qvel"][0] + r.svarint(), b["qvel"][1] + r.svarint()]
             bodies[key]["collided"] = bool(flags & COLLIDED)
-        particles = {} if kind != KIND_DELTA else self.particles
+        particles = {} if kind != KIND_DELTA else dict(self.particles)
         pid = 0
         for _ in range(r.varint()):
             pid += r.varint()
@@ -142,6 +144,7 @@ class FrameDecoder:
                 p = particles.get(pid)
                 if p is None:
                     raise DecodeError(f"update of unknown particle {pid}")
+                p = particles[pid] = dict(p)
                 if flags & POS:
                     p["qpos"] = [p["qpos"][0] + r.svarint(), p["qpos"][1] + r.svarint()]
         if r.at != len(r.data):
