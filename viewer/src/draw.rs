@@ -308,21 +308,33 @@ pub struct Timeline {
 impl Timeline {
     /// Maps a server frame and time to the timelines; `restarted` says a new run began.
     pub fn map(&mut self, frame: u64, time: f64, dt: f64) -> (u64, f64, bool) {
+        // Frame numbers and times come off the wire: the arithmetic saturates and a time
+        // that is not a finite number counts as 0, so no payload can overflow it.
+        let time = if time.is_finite() { time } else { 0.0 };
         let restarted = self.last_raw.is_some_and(|(f, _)| frame < f);
         if restarted {
             let (last_frame, last_time) = self.last.expect("a frame was mapped");
-            self.frame_offset = last_frame + 1 - frame;
+            self.frame_offset = last_frame.saturating_add(1).saturating_sub(frame);
             self.time_offset = last_time + dt - time;
+            if !self.time_offset.is_finite() {
+                self.time_offset = 0.0;
+            }
         }
         self.last_raw = Some((frame, time));
-        let mapped = (frame + self.frame_offset, time + self.time_offset);
+        let mapped = (
+            self.frame_of(frame),
+            Some(time + self.time_offset)
+                .filter(|t| t.is_finite())
+                .unwrap_or(0.0),
+        );
         self.last = Some(mapped);
         (mapped.0, mapped.1, restarted)
     }
 
-    /// The timeline frame of a server frame of the current run (for events).
+    /// The timeline frame of a server frame of the current run (for events), at most
+    /// `i64::MAX` (what Rerun's sequence timelines hold).
     pub fn frame_of(&self, frame: u64) -> u64 {
-        frame + self.frame_offset
+        frame.saturating_add(self.frame_offset).min(i64::MAX as u64)
     }
 }
 
@@ -342,5 +354,18 @@ mod timeline_tests {
         // A reset right away, then a late join's key frame further on.
         assert_eq!(t.map(0, 0.0, 0.5), (10, 5.0, true));
         assert_eq!(t.map(5, 2.5, 0.5), (15, 7.5, false));
+    }
+
+    #[test]
+    fn hostile_frame_numbers_and_times_saturate() {
+        let mut t = Timeline::default();
+        assert_eq!(
+            t.map(u64::MAX, f64::NAN, 0.5),
+            (i64::MAX as u64, 0.0, false)
+        );
+        assert_eq!(t.map(3, f64::INFINITY, 0.5).2, true);
+        let (frame, time, _) = t.map(u64::MAX - 1, 1e308, f64::MAX);
+        assert!(frame <= i64::MAX as u64 && time.is_finite());
+        assert_eq!(t.frame_of(u64::MAX), i64::MAX as u64);
     }
 }
