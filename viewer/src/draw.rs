@@ -363,7 +363,7 @@ mod timeline_tests {
             t.map(u64::MAX, f64::NAN, 0.5),
             (i64::MAX as u64, 0.0, false)
         );
-        assert_eq!(t.map(3, f64::INFINITY, 0.5).2, true);
+        assert!(t.map(3, f64::INFINITY, 0.5).2, "a lower frame is a restart");
         let (frame, time, _) = t.map(u64::MAX - 1, 1e308, f64::MAX);
         assert!(frame <= i64::MAX as u64 && time.is_finite());
         assert_eq!(t.frame_of(u64::MAX), i64::MAX as u64);
