@@ -1,9 +1,14 @@
 //! The secured deployment, end to end with the shipped configurations of `assets/zenoh/`:
-//! a router holding the credentials and the access-control rules, a server, a client, a
-//! viewer and an impostor connecting to it as real processes and sessions on loopback.
-//! An unauthenticated peer cannot connect; a viewer cannot command; an authenticated
-//! client cannot publish frames or answer requests in the server's place; the authorised
-//! client works. Every wait is bounded.
+//! a router holding the credentials, the TLS certificate (made by `ricochet-server certs`)
+//! and the access-control rules, a server, a client, a viewer and an impostor connecting
+//! to it as real processes and sessions on loopback. A peer without credentials, with a
+//! wrong password, without TLS or trusting another authority cannot connect; a viewer
+//! cannot command; an authenticated client cannot publish frames or answer requests in the
+//! server's place; the authorised client works. Every wait is bounded.
+//!
+//! The configurations name their files (credentials, certificates) relative to the
+//! directory a process starts in, as a deployment would: every process here, this test's
+//! own sessions included, runs in one temporary directory holding them.
 
 mod common;
 
@@ -56,7 +61,16 @@ fn only_authorised_peers_act_through_the_secured_router() {
         dir.path().join("credentials.txt"),
     )
     .unwrap();
-    let endpoint = free_endpoint();
+    for (out, host) in [("certs", "127.0.0.1"), ("other-certs", "127.0.0.1")] {
+        ok(&Process::new(bin("ricochet-server"))
+            .args(["certs", "--out", out, "--host", host])
+            .current_dir(dir.path())
+            .output()
+            .unwrap());
+    }
+    std::env::set_current_dir(dir.path()).unwrap();
+    let port = free_endpoint().rsplit(':').next().unwrap().to_string();
+    let endpoint = format!("tls/127.0.0.1:{port}");
     let spawn = |args: &[&str], cwd: &Path| {
         Running(
             Process::new(bin("ricochet-server"))
@@ -112,8 +126,11 @@ fn only_authorised_peers_act_through_the_secured_router() {
     assert!(got, "the client receives frames");
 
     // An unauthenticated peer cannot even connect.
+    // (It speaks TLS and trusts the deployment's authority: only the credentials lack.)
     let mut open = Network::client(Mode::Client, vec![endpoint.clone()])
         .config()
+        .unwrap();
+    open.insert_json5("transport/link/tls/root_ca_certificate", "\"certs/ca.pem\"")
         .unwrap();
     open.insert_json5("connect/timeout_ms", "3000").unwrap();
     open.insert_json5("connect/exit_on_failure", "true")
@@ -122,7 +139,35 @@ fn only_authorised_peers_act_through_the_secured_router() {
         zenoh::open(open).wait().is_err(),
         "a peer without credentials connected"
     );
-    // Nor can one with a wrong password.
+    // Nor one with a client's credentials but without TLS, or trusting another authority.
+    let mut plain = as_role("client", &endpoint).config().unwrap();
+    plain
+        .insert_json5("connect/endpoints", &format!("[\"tcp/127.0.0.1:{port}\"]"))
+        .unwrap();
+    plain.insert_json5("connect/timeout_ms", "3000").unwrap();
+    plain
+        .insert_json5("connect/exit_on_failure", "true")
+        .unwrap();
+    assert!(
+        zenoh::open(plain).wait().is_err(),
+        "a peer connected without TLS"
+    );
+    let mut stranger = as_role("client", &endpoint).config().unwrap();
+    stranger
+        .insert_json5(
+            "transport/link/tls/root_ca_certificate",
+            "\"other-certs/ca.pem\"",
+        )
+        .unwrap();
+    stranger.insert_json5("connect/timeout_ms", "3000").unwrap();
+    stranger
+        .insert_json5("connect/exit_on_failure", "true")
+        .unwrap();
+    assert!(
+        zenoh::open(stranger).wait().is_err(),
+        "a peer trusting another authority connected"
+    );
+    // Nor one with a wrong password.
     let mut wrong = as_role("client", &endpoint).config().unwrap();
     wrong
         .insert_json5("transport/auth/usrpwd/password", "\"guess\"")
@@ -234,6 +279,7 @@ fn only_authorised_peers_act_through_the_secured_router() {
     let py = |role: &str| {
         let file = config(&format!("{role}.json5"));
         Process::new(&python)
+            .current_dir(dir.path())
             .arg(&script)
             .args(["--world", "acl", "--timeout", "3", "--config"])
             .arg(file)

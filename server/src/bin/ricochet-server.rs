@@ -118,6 +118,21 @@ enum Command {
         #[arg(long, default_value = "docs/tradeoff")]
         out: PathBuf,
     },
+    /// Make the TLS certificates of a secured deployment (assets/zenoh/): a certificate
+    /// authority and the router's certificate signed by it, as PEM files in DIR
+    /// (ca.pem, ca-key.pem, router.pem, router-key.pem; keys readable by their owner
+    /// only). Clients trust ca.pem; keep ca-key.pem offline.
+    Certs {
+        /// Where to write them.
+        #[arg(long, default_value = "certs", value_name = "DIR")]
+        out: PathBuf,
+        /// A host name or IP address clients reach the router by. Repeatable.
+        #[arg(long = "host", value_name = "NAME", default_values_t = ["localhost".to_string(), "127.0.0.1".to_string()])]
+        hosts: Vec<String>,
+        /// Days the certificates are valid.
+        #[arg(long, default_value_t = 365)]
+        days: u32,
+    },
     /// Run a zenoh router where servers and clients on several hosts meet.
     ///
     /// They connect to it with `--mode client --connect tcp/<router>:7447`.
@@ -258,6 +273,12 @@ fn main() -> Result<()> {
                 out.join("tradeoff.png").display(),
                 readme.display()
             );
+            Ok(())
+        }
+        Command::Certs { out, hosts, days } => {
+            for file in ricochet_server::certs::make(&out, &hosts, days)? {
+                eprintln!("wrote {}", file.display());
+            }
             Ok(())
         }
         Command::Router { network } => {
