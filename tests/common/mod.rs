@@ -112,24 +112,9 @@ impl Server {
 
     /// Waits until the server answers a request (bounded).
     pub fn wait_up(&self) {
-        let client = self.client();
-        let began = Instant::now();
-        while began.elapsed() < TIMEOUT * 3 {
-            // `deselect` changes nothing but answers.
-            if client
-                .request(
-                    &Command::World(Action::Deselect),
-                    Duration::from_millis(500),
-                )
-                .is_ok()
-            {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        panic!(
-            "server of world {} on {} never answered",
-            self.world, self.endpoint
+        wait_answered(
+            &self.client(),
+            &format!("world {} on {}", self.world, self.endpoint),
         );
     }
 
@@ -142,6 +127,26 @@ impl Server {
             .output()
             .expect("ricochet starts")
     }
+}
+
+/// Waits (bounded) until `client`'s requests are answered; `what` names the server in the
+/// panic if they never are.
+pub fn wait_answered(client: &Client, what: &str) {
+    let began = Instant::now();
+    while began.elapsed() < TIMEOUT * 3 {
+        // `deselect` changes nothing but answers.
+        if client
+            .request(
+                &Command::World(Action::Deselect),
+                Duration::from_millis(500),
+            )
+            .is_ok()
+        {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    panic!("the server of {what} never answered");
 }
 
 pub fn ok(out: &Output) -> String {

@@ -8,6 +8,8 @@ use rand_chacha::ChaCha8Rng;
 use crate::action::{Action, ActionError, ActionOutcome, MinionShape};
 use crate::behavior::{self, Behavior};
 use crate::dynamics::body::BodyDef;
+use crate::dynamics::config::WorldConfig;
+use crate::dynamics::setting::Setting;
 use crate::geometry::Shape;
 use crate::particles::Emitter;
 
@@ -111,16 +113,22 @@ impl World {
                 self.check_new_emitter(*count).map_err(count_error)?;
             }
             Action::Set(setting) => {
-                let mut next = self.config.clone();
-                next.set(setting.clone())?;
-                self.check_work(&next)
-                    .map_err(|e| ActionError::BadArgument {
-                        field: "value",
-                        reason: e.to_string(),
-                    })?;
+                self.config_after(setting)?;
             }
         }
         Ok(())
+    }
+
+    /// The parameters `setting` would give: checked, and within the work limit.
+    fn config_after(&self, setting: &Setting) -> Result<WorldConfig, ActionError> {
+        let mut next = self.config.clone();
+        next.set(setting.clone())?;
+        self.check_work(&next)
+            .map_err(|e| ActionError::BadArgument {
+                field: "value",
+                reason: e.to_string(),
+            })?;
+        Ok(next)
     }
 
     /// Applies an action [`World::check`] accepted.
@@ -296,14 +304,7 @@ impl World {
             }
             Action::Set(setting) => {
                 let before = self.config.seed;
-                let mut next = self.config.clone();
-                next.set(setting.clone())?;
-                self.check_work(&next)
-                    .map_err(|e| ActionError::BadArgument {
-                        field: "value",
-                        reason: e.to_string(),
-                    })?;
-                self.config = next;
+                self.config = self.config_after(setting)?;
                 if self.config.seed != before {
                     self.rng = ChaCha8Rng::seed_from_u64(self.config.seed);
                 }

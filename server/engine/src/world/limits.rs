@@ -9,7 +9,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::broad_phase::BroadPhase;
-use crate::dynamics::config::{Solver, WorldConfig};
+use crate::dynamics::config::WorldConfig;
 
 use super::{Side, World, PARTICLE_GRID_MIN_SHAPES};
 
@@ -230,11 +230,7 @@ impl World {
     /// it may touch, plus one unit per body and particle moved. An upper estimate used to
     /// refuse settings and scenes that would stall the world, not a measured figure.
     pub fn work_estimate(&self, config: &WorldConfig) -> f64 {
-        let passes = config.substeps as f64
-            * match config.solver {
-                Solver::Relaxation => config.relaxation_iterations as f64,
-                Solver::Impulses => (config.impulse_iterations + config.relax_iterations) as f64,
-            };
+        let passes = config.passes_per_step() as f64;
         let size = |side: Side| match side {
             Side::Group(g) => self.groups[g as usize].members.len() as f64,
             Side::Particles => 0.0,
