@@ -6,10 +6,16 @@
 mod common;
 
 use std::process::Command as Process;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use common::*;
-use ricochet_protocol::command::{Command, ServerCommand};
+use ricochet_protocol::client::Client;
+use ricochet_protocol::command::{Action, Command, ServerCommand};
 use ricochet_protocol::dump::read_dump;
+use ricochet_protocol::net::{Mode, Network};
+use zenoh::Wait;
 
 /// The refused inputs: raw command bytes and what the reply must mention.
 fn hostile_inputs(long_name: &str) -> Vec<(Vec<u8>, String)> {
@@ -165,4 +171,144 @@ fn refused_inputs_are_answered_change_nothing_and_the_server_keeps_stepping() {
             let _ = decoder.apply(&sample.payload().to_bytes());
         }
     }
+}
+
+/// On the open default any peer can declare a queryable on a world's keys. The client takes
+/// replies only from the peer holding the world's liveliness token: an impostor answering
+/// `rpc` and `info` beside the real server is never heard, an impostor alone gets no
+/// request answered, and a world whose token two peers hold is refused with a reply saying
+/// so.
+#[test]
+fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
+    let server = Server::start("impulse.toml", "guarded", &[]);
+    // The impostor listens too, and the clients connect to it and to the server, so its
+    // replies surely reach them.
+    let impostor_endpoint = free_endpoint();
+    let mut impostor_network = server.network();
+    impostor_network.listen = vec![impostor_endpoint.clone()];
+    let impostor = Client::open(&impostor_network, "guarded").expect("impostor session");
+    let both = Network::client(
+        Mode::Peer,
+        vec![server.endpoint.clone(), impostor_endpoint.clone()],
+    );
+    let client = Client::open(&both, "guarded").expect("client session");
+    let holders = client.servers(TIMEOUT).unwrap();
+    assert_eq!(holders.len(), 1, "one token holder: {holders:?}");
+    let server_zid = holders[0].clone();
+
+    // The impostor answers the world's requests and info, beside the server.
+    let asked = Arc::new(AtomicUsize::new(0));
+    let fake_reply = br#"{"ok":true,"frame":0,"ids":["impostor"]}"#.to_vec();
+    let counter = asked.clone();
+    let _rpc = impostor
+        .session()
+        .declare_queryable(&impostor.keys().rpc)
+        .callback(move |query| {
+            counter.fetch_add(1, Ordering::Relaxed);
+            let _ = query
+                .reply(query.key_expr().clone(), fake_reply.clone())
+                .wait();
+        })
+        .wait()
+        .unwrap();
+    let fake_info =
+        br#"{"scene":"impostor","bounds":[[0,0],[1,1]],"dt":0.1,"groups":[],"generation":0}"#
+            .to_vec();
+    let counter = asked.clone();
+    let _info = impostor
+        .session()
+        .declare_queryable(&impostor.keys().info)
+        .callback(move |query| {
+            counter.fetch_add(1, Ordering::Relaxed);
+            let _ = query
+                .reply(query.key_expr().clone(), fake_info.clone())
+                .wait();
+        })
+        .wait()
+        .unwrap();
+    // Bounded: until the impostor's queryables are known to the client.
+    let began = Instant::now();
+    while asked.load(Ordering::Relaxed) == 0 {
+        assert!(began.elapsed() < TIMEOUT, "the impostor was never asked");
+        let _ = client.info(TIMEOUT);
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let asked_before = asked.load(Ordering::Relaxed);
+    for _ in 0..20 {
+        let reply = request(&client, Command::World(Action::Deselect));
+        assert!(
+            reply.ok && !reply.ids.contains(&"impostor".to_string()),
+            "the impostor answered a request: {reply:?}"
+        );
+        let info = client.info(TIMEOUT).expect("the server's info");
+        assert_ne!(info.scene, "impostor", "the impostor answered `info`");
+    }
+    assert!(
+        asked.load(Ordering::Relaxed) >= asked_before + 40,
+        "the impostor was asked every time, and answered"
+    );
+
+    // The impostor alone, on a world no server holds: nothing is taken from it.
+    let unserved = Client::open(&both, "unserved").unwrap();
+    let lone_reply = br#"{"ok":true,"frame":0}"#.to_vec();
+    let _lone = impostor
+        .session()
+        .declare_queryable(&unserved.keys().rpc)
+        .callback(move |query| {
+            let _ = query
+                .reply(query.key_expr().clone(), lone_reply.clone())
+                .wait();
+        })
+        .wait()
+        .unwrap();
+    let began = Instant::now();
+    loop {
+        let refused = unserved
+            .request(&Command::World(Action::Deselect), Duration::from_secs(1))
+            .expect_err("a reply from a peer holding no token was taken");
+        let text = refused.to_string();
+        if text.contains("1 reply from peers not holding the world's liveliness token ignored") {
+            break;
+        }
+        // Before the impostor's queryable is known, nothing answers at all.
+        assert!(began.elapsed() < TIMEOUT, "{text}");
+    }
+
+    // The impostor claims the world's token too: a client cannot tell the server apart
+    // and says so.
+    let claim = impostor
+        .session()
+        .liveliness()
+        .declare_token(
+            impostor
+                .keys()
+                .alive_token(&impostor.session().zid().to_string()),
+        )
+        .wait()
+        .unwrap();
+    let began = Instant::now();
+    while client.servers(TIMEOUT).unwrap().len() < 2 {
+        assert!(began.elapsed() < TIMEOUT, "the second token never showed");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let refused = Client::open(&both, "guarded")
+        .unwrap()
+        .request(&Command::World(Action::Deselect), TIMEOUT)
+        .expect_err("a world claimed twice was trusted");
+    let text = refused.to_string();
+    assert!(text.contains("claimed by 2 peers"), "{text}");
+    assert!(text.contains(&server_zid), "{text}");
+
+    // The claim withdrawn, the server is trusted again.
+    drop(claim);
+    let began = Instant::now();
+    while client.servers(TIMEOUT).unwrap().len() > 1 {
+        assert!(began.elapsed() < TIMEOUT, "the claim never went");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let reply = request(
+        &Client::open(&both, "guarded").unwrap(),
+        Command::World(Action::Deselect),
+    );
+    assert!(reply.ok && reply.ids.is_empty(), "{reply:?}");
 }

@@ -206,16 +206,46 @@ def parse_command(words):
     return command
 
 
+def servers(session, world, timeout):
+    """The zenoh ids holding the world's liveliness token `ricochet/<world>/alive/<zid>`."""
+    zids = set()
+    for reply in session.liveliness().get(f"ricochet/{world}/alive/*", timeout=timeout):
+        if reply.ok is not None:
+            zids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+    return sorted(zids)
+
+
+def server_replies(session, world, key, timeout, payload=None):
+    """The replies to a query on `key` from the world's server only: the peer holding the
+    world's liveliness token. Replies from other peers are skipped with a warning; a world
+    whose token two peers hold is refused."""
+    import zenoh
+    known = None
+    for reply in session.get(key, payload=payload, timeout=timeout,
+                             consolidation=zenoh.ConsolidationMode.NONE):
+        zid = str(reply.replier_id.zid) if reply.replier_id is not None else None
+        if known is None or zid not in known:
+            known = servers(session, world, timeout)
+            if len(known) > 1:
+                raise RuntimeError(f"world {world!r} is claimed by {len(known)} peers holding its "
+                                   f"liveliness token ({', '.join(known)}): refusing their replies")
+        if zid is not None and zid in known:
+            yield reply
+        else:
+            print(f"ignored a reply on {key} from {zid or 'an unknown peer'}, which does not "
+                  f"hold the world's token", file=sys.stderr)
+
+
 def request(session, world, command, timeout):
     payload = command if isinstance(command, (bytes, bytearray)) else json.dumps(command).encode()
-    for reply in session.get(f"ricochet/{world}/rpc", payload=payload, timeout=timeout):
+    for reply in server_replies(session, world, f"ricochet/{world}/rpc", timeout, payload):
         sample = reply.ok if reply.ok is not None else reply.err
         return json.loads(sample.payload.to_bytes())
-    raise TimeoutError(f"no reply from world {world!r} within {timeout} s: is its server up?")
+    raise TimeoutError(f"no reply from the server of world {world!r} within {timeout} s: is it up?")
 
 
-def fetch(session, key, timeout):
-    for reply in session.get(key, timeout=timeout):
+def fetch(session, world, key, timeout):
+    for reply in server_replies(session, world, key, timeout):
         if reply.ok is not None:
             return reply.ok.payload.to_bytes()
     return None
@@ -227,7 +257,7 @@ def watch(session, world, frames, seconds, timeout):
     # Statics from the snapshot, the dynamic state now from the state query; the frames
     # that follow apply on top (older ones already queued are skipped).
     for key in ("snapshot", "state"):
-        payload = fetch(session, f"ricochet/{world}/{key}", timeout)
+        payload = fetch(session, world, f"ricochet/{world}/{key}", timeout)
         if payload is not None:
             decoder.apply(payload)
     seen, began = 0, time.monotonic()

@@ -1,11 +1,22 @@
 //! A typed zenoh client of a Ricochet world, for the command-line client, the viewer and
 //! tests. Blocking calls (zenoh's `Wait`); no async runtime is needed by the caller.
+//!
+//! Replies are taken only from the world's server: the zenoh instance whose id the world's
+//! liveliness token `ricochet/<world>/alive/<zid>` names. A reply from any other peer (a
+//! stray or hostile queryable on the world's keys) is ignored and counted; a world whose
+//! token more than one peer holds is refused, since the client cannot tell which is the
+//! server. The id a reply carries is the one its sender's zenoh session declares, so on an
+//! open network this guards against mistakes and naive impostors; against a peer that
+//! forges its id, the secured deployment (docs/security.md) is what holds, where only the
+//! server's credentials may declare the token and the queryables.
 
-use std::time::Duration;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use zenoh::handlers::{FifoChannelHandler, RingChannel, RingChannelHandler};
 use zenoh::pubsub::Subscriber;
+use zenoh::query::ConsolidationMode;
 use zenoh::sample::Sample;
 use zenoh::{Session, Wait};
 
@@ -22,6 +33,8 @@ pub type LatestFrames = Subscriber<RingChannelHandler<Sample>>;
 pub struct Client {
     session: Session,
     keys: WorldKeys,
+    /// The zenoh ids holding the world's liveliness token, as last read.
+    servers: Mutex<Vec<String>>,
 }
 
 impl Client {
@@ -31,13 +44,18 @@ impl Client {
         Ok(Client {
             session: network.open()?,
             keys,
+            servers: Mutex::new(Vec::new()),
         })
     }
 
     /// Addresses `world` over an existing session.
     pub fn with_session(session: Session, world: &str) -> Result<Self> {
         let keys = WorldKeys::new(world).map_err(|e| anyhow!(e))?;
-        Ok(Client { session, keys })
+        Ok(Client {
+            session,
+            keys,
+            servers: Mutex::new(Vec::new()),
+        })
     }
 
     pub fn session(&self) -> &Session {
@@ -76,32 +94,108 @@ impl Client {
             .with_context(|| format!("unreadable reply: {}", String::from_utf8_lossy(&payload)))
     }
 
-    /// Queries `key` (with `payload`) and waits for the first reply: `Ok` with its payload,
-    /// or `Err` with the payload of an error reply.
+    /// The zenoh ids of the peers holding the world's liveliness token now: one when the
+    /// world is served, none when it is not.
+    pub fn servers(&self, timeout: Duration) -> Result<Vec<String>> {
+        let replies = self
+            .session
+            .liveliness()
+            .get(self.keys.alive_tokens())
+            .timeout(timeout)
+            .wait()
+            .map_err(|e| anyhow!("{}: {e}", self.keys.alive))?;
+        let mut zids = Vec::new();
+        while let Ok(reply) = replies.recv() {
+            if let Ok(sample) = reply.result() {
+                if let Some((_, zid)) = keys::parse_alive(sample.key_expr().as_str()) {
+                    zids.push(zid.to_string());
+                }
+            }
+        }
+        zids.sort();
+        zids.dedup();
+        Ok(zids)
+    }
+
+    /// Whether `zid` holds the world's token, and alone: read from the last list of
+    /// holders, refreshed once (`refreshed`) when `zid` is not on it.
+    fn is_server(&self, zid: &str, refreshed: &mut bool, timeout: Duration) -> Result<bool> {
+        let mut servers = self.servers.lock().unwrap_or_else(|e| e.into_inner());
+        if !servers.iter().any(|s| s == zid) && !*refreshed {
+            *refreshed = true;
+            *servers = self.servers(timeout)?;
+        }
+        if servers.len() > 1 {
+            let claimed = std::mem::take(&mut *servers);
+            return Err(anyhow!(
+                "world `{}` is claimed by {} peers holding its liveliness token ({}): \
+                 refusing their replies, as the server cannot be told apart (see docs/security.md)",
+                self.keys.world,
+                claimed.len(),
+                claimed.join(", "),
+            ));
+        }
+        Ok(servers.first().is_some_and(|s| s == zid))
+    }
+
+    /// Queries `key` (with `payload`) and waits for the first reply from the world's
+    /// server: `Ok` with its payload, or `Err` with the payload of an error reply. Replies
+    /// from peers that do not hold the world's token are ignored.
     fn first_reply(
         &self,
         key: &str,
         payload: Option<Vec<u8>>,
         timeout: Duration,
     ) -> Result<Result<Vec<u8>, Vec<u8>>> {
-        let mut get = self.session.get(key).timeout(timeout);
+        // Every reply, unconsolidated: consolidation keeps one reply per key, which could be
+        // an impostor's.
+        let mut get = self
+            .session
+            .get(key)
+            .consolidation(ConsolidationMode::None)
+            .timeout(timeout);
         if let Some(bytes) = payload {
             get = get.payload(bytes);
         }
         let replies = get.wait().map_err(|e| anyhow!("{key}: {e}"))?;
-        let reply = replies
-            .recv_timeout(timeout + Duration::from_millis(500))
-            .map_err(|e| anyhow!("{key}: {e}"))?
-            .ok_or_else(|| {
-                anyhow!(
-                    "no answer on {key} within {timeout:?}: is the server of world `{}` up?",
-                    self.keys.world
-                )
-            })?;
-        Ok(match reply.result() {
-            Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
-            Err(err) => Err(err.payload().to_bytes().into_owned()),
-        })
+        let deadline = Instant::now() + timeout + Duration::from_millis(500);
+        let mut ignored = 0usize;
+        let mut refreshed = false;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            // `Err`: every replier is done; `Ok(None)`: the deadline passed.
+            let Ok(Some(reply)) = replies.recv_timeout(left) else {
+                break;
+            };
+            let from = reply.replier_id().map(|id| id.zid().to_string());
+            match from {
+                Some(zid) if self.is_server(&zid, &mut refreshed, timeout)? => {
+                    return Ok(match reply.result() {
+                        Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+                        Err(err) => Err(err.payload().to_bytes().into_owned()),
+                    });
+                }
+                _ => {
+                    ignored += 1;
+                    tracing::warn!(
+                        key,
+                        replier = from.as_deref().unwrap_or("unknown"),
+                        "ignored a reply from a peer that does not hold the world's token"
+                    );
+                }
+            }
+        }
+        let ignored = match ignored {
+            0 => String::new(),
+            n => format!(
+                " ({n} {} from peers not holding the world's liveliness token ignored)",
+                if n == 1 { "reply" } else { "replies" }
+            ),
+        };
+        Err(anyhow!(
+            "no answer on {key} from the server within {timeout:?}{ignored}: is the server of world `{}` up?",
+            self.keys.world
+        ))
     }
 
     /// Every frame from now on, in order.
@@ -194,7 +288,7 @@ pub fn list_worlds(session: &Session, timeout: Duration) -> Result<Vec<String>> 
     let mut worlds = Vec::new();
     while let Ok(reply) = replies.recv() {
         if let Ok(sample) = reply.result() {
-            if let Some(w) = keys::world_of_alive(sample.key_expr().as_str()) {
+            if let Some((w, _)) = keys::parse_alive(sample.key_expr().as_str()) {
                 worlds.push(w.to_string());
             }
         }

@@ -9,7 +9,10 @@
 //! | `ricochet/<world>/state` | queryable | a key frame of the dynamic state now, for late joiners |
 //! | `ricochet/<world>/info` | queryable | a [`crate::command::WorldInfo`], JSON: the scene's name, bounds, step and groups |
 //! | `ricochet/<world>/event` | publication | a [`crate::command::Event`] per handled command, JSON |
-//! | `ricochet/<world>/alive` | liveliness token | held while the server runs |
+//! | `ricochet/<world>/alive/<zid>` | liveliness token | held while the server runs; `<zid>` is its zenoh id |
+//!
+//! Clients take a reply only from the zenoh instance whose id the world's token names (see
+//! [`crate::client`]), so a stray queryable on a world's keys is not taken for its server.
 //!
 //! A world name is 1 to 64 characters of `A-Z a-z 0-9 _ -`.
 
@@ -46,6 +49,7 @@ pub struct WorldKeys {
     pub state: String,
     pub info: String,
     pub event: String,
+    /// `ricochet/<world>/alive`: the prefix of the world's liveliness token.
     pub alive: String,
 }
 
@@ -65,14 +69,27 @@ impl WorldKeys {
             alive: k("alive"),
         })
     }
+
+    /// The liveliness token a server with zenoh id `zid` declares for this world.
+    pub fn alive_token(&self, zid: &str) -> String {
+        format!("{}/{zid}", self.alive)
+    }
+
+    /// The key expression matching every token of this world (normally exactly one).
+    pub fn alive_tokens(&self) -> String {
+        format!("{}/*", self.alive)
+    }
 }
 
 /// The liveliness key expression matching every world's token.
-pub const ALL_ALIVE: &str = "ricochet/*/alive";
+pub const ALL_ALIVE: &str = "ricochet/*/alive/*";
 
-/// The world named by a liveliness token's key, `ricochet/<world>/alive`.
-pub fn world_of_alive(key: &str) -> Option<&str> {
-    key.strip_prefix("ricochet/")?.strip_suffix("/alive")
+/// The world and the server's zenoh id named by a liveliness token's key,
+/// `ricochet/<world>/alive/<zid>`.
+pub fn parse_alive(key: &str) -> Option<(&str, &str)> {
+    let rest = key.strip_prefix("ricochet/")?;
+    let (world, zid) = rest.split_once("/alive/")?;
+    (!world.contains('/') && !zid.is_empty() && !zid.contains('/')).then_some((world, zid))
 }
 
 #[cfg(test)]
@@ -83,7 +100,12 @@ mod tests {
     fn keys_of_a_world() {
         let k = WorldKeys::new("arena-2").unwrap();
         assert_eq!(k.frame, "ricochet/arena-2/frame");
-        assert_eq!(world_of_alive(&k.alive), Some("arena-2"));
+        assert_eq!(
+            parse_alive(&k.alive_token("a1b2")),
+            Some(("arena-2", "a1b2"))
+        );
+        assert_eq!(parse_alive(&k.alive), None);
+        assert_eq!(parse_alive("ricochet/a/b/alive/z"), None);
         assert!(WorldKeys::new("a/b").is_err());
         assert!(WorldKeys::new("*").is_err());
         assert!(WorldKeys::new("").is_err());

@@ -288,7 +288,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let info_queries = session.declare_queryable(&keys.info).wait().map_err(z)?;
     let _alive = session
         .liveliness()
-        .declare_token(&keys.alive)
+        .declare_token(keys.alive_token(&session.zid().to_string()))
         .wait()
         .map_err(z)?;
     tracing::info!(

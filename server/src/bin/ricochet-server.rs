@@ -42,7 +42,7 @@ enum Command {
     /// the statics snapshot on ricochet/<world>/snapshot (also a queryable), the dynamic
     /// state for late joiners on the ricochet/<world>/state queryable, one event per
     /// handled command on ricochet/<world>/event; a liveliness token
-    /// ricochet/<world>/alive says the world is up.
+    /// ricochet/<world>/alive/<zid> says the world is up and which peer serves it.
     Run {
         /// The scene file (TOML).
         #[arg(long)]
