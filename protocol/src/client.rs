@@ -10,14 +10,15 @@
 //! forges its id, the secured deployment (docs/security.md) is what holds, where only the
 //! server's credentials may declare the token and the queryables.
 
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use zenoh::handlers::{FifoChannelHandler, RingChannel, RingChannelHandler};
-use zenoh::pubsub::Subscriber;
+use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::ConsolidationMode;
-use zenoh::sample::Sample;
+use zenoh::sample::{Sample, SourceInfo};
 use zenoh::{Session, Wait};
 
 use crate::command::{Command, Event, Reply};
@@ -35,26 +36,32 @@ pub struct Client {
     keys: WorldKeys,
     /// The zenoh ids holding the world's liveliness token, as last read.
     servers: Mutex<Vec<String>>,
+    /// Commands leave through this publisher; its id names this client as their sender.
+    commands: Publisher<'static>,
+    /// Numbers this client's commands (zenoh's source sequence number) and requests
+    /// (their id).
+    sequence: AtomicU32,
 }
 
 impl Client {
     /// Opens a session and addresses `world`.
     pub fn open(network: &Network, world: &str) -> Result<Self> {
-        let keys = WorldKeys::new(world).map_err(|e| anyhow!(e))?;
-        Ok(Client {
-            session: network.open()?,
-            keys,
-            servers: Mutex::new(Vec::new()),
-        })
+        Self::with_session(network.open()?, world)
     }
 
     /// Addresses `world` over an existing session.
     pub fn with_session(session: Session, world: &str) -> Result<Self> {
         let keys = WorldKeys::new(world).map_err(|e| anyhow!(e))?;
+        let commands = session
+            .declare_publisher(keys.cmd.clone())
+            .wait()
+            .map_err(|e| anyhow!("declare the command publisher: {e}"))?;
         Ok(Client {
             session,
             keys,
+            commands,
             servers: Mutex::new(Vec::new()),
+            sequence: AtomicU32::new(0),
         })
     }
 
@@ -72,17 +79,56 @@ impl Client {
         self.send_raw(command.to_json().into_bytes())
     }
 
+    /// What this client says of itself on each message: its session's zenoh id (the
+    /// server's rate limit and request ids are per sender) and a sequence number.
+    fn source(&self) -> SourceInfo {
+        let sn = self.sequence.fetch_add(1, Ordering::Relaxed);
+        SourceInfo::new(self.commands.id(), sn)
+    }
+
     /// Sends raw bytes as a command (tests send malformed ones).
     pub fn send_raw(&self, bytes: Vec<u8>) -> Result<()> {
-        self.session
-            .put(&self.keys.cmd, bytes)
+        self.commands
+            .put(bytes)
+            .source_info(self.source())
             .wait()
             .map_err(|e| anyhow!("send: {e}"))
     }
 
-    /// Sends a command and waits for the reply.
+    /// Sends a command and waits for the reply. The request carries an id, so
+    /// [`Client::request_retrying`] may send it again without its being applied twice.
     pub fn request(&self, command: &Command, timeout: Duration) -> Result<Reply> {
-        self.request_raw(command.to_json().into_bytes(), timeout)
+        self.request_retrying(command, timeout, 1)
+    }
+
+    /// Sends a command and waits for the reply, sending it again (same id: the server
+    /// applies it once and answers every copy) up to `attempts` times in all while no
+    /// answer comes, each attempt waiting `timeout`.
+    pub fn request_retrying(
+        &self,
+        command: &Command,
+        timeout: Duration,
+        attempts: u32,
+    ) -> Result<Reply> {
+        let id = format!("r{}", self.sequence.fetch_add(1, Ordering::Relaxed));
+        let mut body = serde_json::to_value(command).expect("commands serialise");
+        body.as_object_mut()
+            .expect("a command is a JSON object")
+            .insert("id".into(), serde_json::Value::String(id.clone()));
+        let bytes = body.to_string().into_bytes();
+        let mut last = None;
+        for attempt in 1..=attempts.max(1) {
+            match self.request_raw(bytes.clone(), timeout) {
+                Ok(reply) => return Ok(reply),
+                Err(e) => {
+                    if attempt < attempts {
+                        tracing::warn!(attempt, id, "no answer, sending again: {e:#}");
+                    }
+                    last = Some(e);
+                }
+            }
+        }
+        Err(last.expect("at least one attempt"))
     }
 
     /// Sends raw bytes as a request and waits for the reply.
@@ -153,6 +199,7 @@ impl Client {
             .session
             .get(key)
             .consolidation(ConsolidationMode::None)
+            .source_info(self.source())
             .timeout(timeout);
         if let Some(bytes) = payload {
             get = get.payload(bytes);

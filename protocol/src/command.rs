@@ -62,6 +62,9 @@ pub const MAX_COMMAND_BYTES: usize = 1 << 20;
 /// The longest name (group, preset, scene) a command may carry, in bytes.
 pub const MAX_NAME_BYTES: usize = 256;
 
+/// The longest request id (`"id"`, chosen by the client) a command may carry, in bytes.
+pub const MAX_ID_BYTES: usize = 64;
+
 /// Bytes of an error message a refusal echoes at most: what a peer sent is never
 /// repeated at length to it, to event subscribers or to the log.
 pub const MAX_ERROR_BYTES: usize = 300;
@@ -79,15 +82,55 @@ impl Command {
         Self::parse_unshortened(bytes, max_bytes).map_err(|e| short(&e, MAX_ERROR_BYTES))
     }
 
+    /// A command with the request id a client may give it (`"id": "..."`, at most
+    /// [`MAX_ID_BYTES`]): a server applies a command once per id, and answers a retry
+    /// with the first answer. The id is read even when the command is refused, so the
+    /// refusal can name it; an id that is not a short string refuses the command.
+    pub fn parse_request(
+        bytes: &[u8],
+        max_bytes: usize,
+    ) -> (Option<String>, Result<Command, String>) {
+        let (id, command) = Self::parse_with_id(bytes, max_bytes);
+        (id, command.map_err(|e| short(&e, MAX_ERROR_BYTES)))
+    }
+
+    /// The command alone: a request id, if any, is checked and set aside.
     fn parse_unshortened(bytes: &[u8], max_bytes: usize) -> Result<Command, String> {
+        Self::parse_with_id(bytes, max_bytes).1
+    }
+
+    fn parse_with_id(bytes: &[u8], max_bytes: usize) -> (Option<String>, Result<Command, String>) {
         if bytes.len() > max_bytes {
-            return Err(format!(
-                "command of {} bytes is larger than the limit of {max_bytes}",
-                bytes.len()
-            ));
+            return (
+                None,
+                Err(format!(
+                    "command of {} bytes is larger than the limit of {max_bytes}",
+                    bytes.len()
+                )),
+            );
         }
-        let value: serde_json::Value =
-            serde_json::from_slice(bytes).map_err(|e| format!("not JSON: {e}"))?;
+        let mut value: serde_json::Value = match serde_json::from_slice(bytes) {
+            Ok(value) => value,
+            Err(e) => return (None, Err(format!("not JSON: {e}"))),
+        };
+        let id = match value.as_object_mut().and_then(|o| o.remove("id")) {
+            None => None,
+            Some(serde_json::Value::String(id)) if !id.is_empty() && id.len() <= MAX_ID_BYTES => {
+                Some(id)
+            }
+            Some(_) => {
+                return (
+                    None,
+                    Err(format!(
+                        "`id` must be a string of 1 to {MAX_ID_BYTES} bytes"
+                    )),
+                )
+            }
+        };
+        (id, Self::parse_value(value))
+    }
+
+    fn parse_value(value: serde_json::Value) -> Result<Command, String> {
         let name = value
             .get("do")
             .ok_or("a command is a JSON object with a `do` field naming it")?
@@ -159,6 +202,22 @@ pub struct Reply {
     /// Why the command was refused.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// The request's id, when it gave one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<String>,
+}
+
+impl Reply {
+    /// A refusal at `frame`.
+    pub fn refused(frame: u64, error: impl Into<String>) -> Reply {
+        Reply {
+            ok: false,
+            frame,
+            ids: Vec::new(),
+            error: Some(error.into()),
+            id: None,
+        }
+    }
 }
 
 /// What the server publishes on the event key for every command it handles: the
@@ -189,6 +248,32 @@ pub struct WorldInfo {
     pub groups: Vec<String>,
     /// Changes whenever the scene is (re)loaded.
     pub generation: u64,
+    /// How the server is coping: what it took, refused and dropped since it started.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub health: Option<Health>,
+}
+
+/// A server's counts since it started (the `health` of [`WorldInfo`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Health {
+    /// Frames stepped.
+    pub frames: u64,
+    /// Steps that started more than one `dt` late.
+    pub overruns: u64,
+    /// Commands and requests applied (a retried id counts once).
+    pub applied: u64,
+    /// Commands and requests refused with a reason (bad, over a limit).
+    pub refused: u64,
+    /// Retries answered from the first answer instead of applied again.
+    pub retries: u64,
+    /// Commands and requests over their sender's rate: requests are answered so.
+    pub rate_limited: u64,
+    /// Commands and requests that found the queue full: requests are answered so.
+    pub queue_full: u64,
+    /// Replies and events the network would not take at once (a slow peer): dropped.
+    pub unsent: u64,
+    /// Queries (state, snapshot, info) answered.
+    pub queries: u64,
 }
 
 /// One line of an input log (`ricochet record`, `ricochet-server simulate --inputs`): an

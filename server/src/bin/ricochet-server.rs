@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use ricochet_engine::scene;
 use ricochet_engine::world::{Limits, World};
 use ricochet_protocol::command::{parse_input_log, TimedAction};
@@ -18,6 +18,7 @@ use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, Mode, NetworkArgs};
 use ricochet_protocol::world::{self as wire, write_frame};
+use ricochet_server::host::inbox::InboxLimits;
 use ricochet_server::host::{self, HostOptions};
 use ricochet_server::report::{self, bench, tradeoff};
 
@@ -32,6 +33,59 @@ struct Cli {
     command: Command,
 }
 
+#[derive(Args)]
+struct RunArgs {
+    /// The scene file (TOML).
+    #[arg(long)]
+    scene: PathBuf,
+    /// The world's name in key expressions.
+    #[arg(long, default_value = DEFAULT_WORLD)]
+    world: String,
+    #[command(flatten)]
+    network: NetworkArgs,
+    /// Start paused; `resume` or `step` commands move the world.
+    #[arg(long)]
+    paused: bool,
+    /// Override a `[world]` field (as for simulate). Repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    set: Vec<String>,
+    /// A key frame (all dynamic state) every this many frames.
+    #[arg(long, default_value_t = 60)]
+    keyframe_interval: u64,
+    /// Stop after this many frames instead of running until killed.
+    #[arg(long)]
+    max_frames: Option<u64>,
+    /// Append every frame the server publishes to this file as JSON Lines, in the
+    /// form of `simulate --dump` (full precision), flushed each frame.
+    #[arg(long, value_name = "FILE")]
+    dump: Option<PathBuf>,
+    /// The directory `load` commands may name scenes in (nothing outside it is read);
+    /// the directory of --scene by default.
+    #[arg(long, value_name = "DIR")]
+    scenes: Option<PathBuf>,
+    /// Lower or raise a limit of the hosted worlds, e.g. --limit bodies=5000
+    /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
+    /// `[limits]` may lower these, never raise them. Repeatable.
+    #[arg(long = "limit", value_name = "NAME=VALUE")]
+    limit: Vec<String>,
+    /// Steps per second of wall time at most: a world with a shorter dt runs slower
+    /// than real time instead of flooding its viewers.
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    max_rate: f64,
+    /// Commands a second each sender may send over time (a sender is the zenoh id its
+    /// session declares; Ricochet's clients declare theirs). Over it, commands are
+    /// dropped and requests answered so.
+    #[arg(long, default_value_t = 1000.0, value_name = "N")]
+    sender_rate: f64,
+    /// Commands a sender may send at once above its rate.
+    #[arg(long, default_value_t = 500.0, value_name = "N")]
+    sender_burst: f64,
+    /// Commands (and, apart, requests) waiting for the frame boundary at most; past it
+    /// they are dropped and requests answered so.
+    #[arg(long, default_value_t = 4096, value_name = "N")]
+    queue: usize,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Host a world on zenoh and run it in real time at the scene's fixed step.
@@ -43,45 +97,7 @@ enum Command {
     /// state for late joiners on the ricochet/<world>/state queryable, one event per
     /// handled command on ricochet/<world>/event; a liveliness token
     /// ricochet/<world>/alive/<zid> says the world is up and which peer serves it.
-    Run {
-        /// The scene file (TOML).
-        #[arg(long)]
-        scene: PathBuf,
-        /// The world's name in key expressions.
-        #[arg(long, default_value = DEFAULT_WORLD)]
-        world: String,
-        #[command(flatten)]
-        network: NetworkArgs,
-        /// Start paused; `resume` or `step` commands move the world.
-        #[arg(long)]
-        paused: bool,
-        /// Override a `[world]` field (as for simulate). Repeatable.
-        #[arg(long = "set", value_name = "NAME=VALUE")]
-        set: Vec<String>,
-        /// A key frame (all dynamic state) every this many frames.
-        #[arg(long, default_value_t = 60)]
-        keyframe_interval: u64,
-        /// Stop after this many frames instead of running until killed.
-        #[arg(long)]
-        max_frames: Option<u64>,
-        /// Append every frame the server publishes to this file as JSON Lines, in the
-        /// form of `simulate --dump` (full precision), flushed each frame.
-        #[arg(long, value_name = "FILE")]
-        dump: Option<PathBuf>,
-        /// The directory `load` commands may name scenes in (nothing outside it is read);
-        /// the directory of --scene by default.
-        #[arg(long, value_name = "DIR")]
-        scenes: Option<PathBuf>,
-        /// Lower or raise a limit of the hosted worlds, e.g. --limit bodies=5000
-        /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
-        /// `[limits]` may lower these, never raise them. Repeatable.
-        #[arg(long = "limit", value_name = "NAME=VALUE")]
-        limit: Vec<String>,
-        /// Steps per second of wall time at most: a world with a shorter dt runs slower
-        /// than real time instead of flooding its viewers.
-        #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
-        max_rate: f64,
-    },
+    Run(RunArgs),
     /// Measure the engine's speed on shipped scenes (figures, not pass/fail).
     ///
     /// The 100-level pyramid under each solver setting (with its worst drift over the
@@ -193,7 +209,7 @@ struct SimulateArgs {
 fn main() -> Result<()> {
     init_tracing("info");
     match Cli::parse().command {
-        Command::Run {
+        Command::Run(RunArgs {
             scene,
             world,
             network,
@@ -205,7 +221,21 @@ fn main() -> Result<()> {
             scenes,
             limit,
             max_rate,
-        } => {
+            sender_rate,
+            sender_burst,
+            queue,
+        }) => {
+            for (flag, value) in [
+                ("--sender-rate", sender_rate),
+                ("--sender-burst", sender_burst),
+            ] {
+                if !(value.is_finite() && value >= 1.0) {
+                    anyhow::bail!("{flag} {value}: must be a number of commands of 1 or more");
+                }
+            }
+            if queue == 0 {
+                anyhow::bail!("--queue 0: at least one command must be able to wait");
+            }
             if !(max_rate.is_finite() && max_rate > 0.0) {
                 anyhow::bail!(
                     "--max-rate {max_rate}: must be a number of steps per second above 0"
@@ -231,6 +261,12 @@ fn main() -> Result<()> {
                 scenes_dir,
                 limits: Limits::default().with(&limit)?,
                 max_rate,
+                inbox: InboxLimits {
+                    rate: sender_rate,
+                    burst: sender_burst,
+                    queue,
+                    ..InboxLimits::default()
+                },
             })
         }
         Command::Bench {

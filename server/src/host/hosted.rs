@@ -1,0 +1,234 @@
+//! The hosted world: the engine's world, the scene it came from, what the wire remembers
+//! of it, and the server's clock state (paused, steps asked for).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use ricochet_engine::scene;
+use ricochet_engine::world::{short, Limits, World};
+use ricochet_protocol::command::{
+    Command, Health, Reply, ServerCommand, WorldInfo, MAX_ERROR_BYTES,
+};
+use ricochet_protocol::frame::FrameEncoder;
+use ricochet_protocol::world as wire;
+
+use super::HostOptions;
+use crate::scenes::{read_scene, resolve_scene};
+
+/// Steps one `step` command may ask for.
+pub const MAX_STEPS_PER_COMMAND: u32 = 10_000;
+
+/// Steps asked for and not yet run, at most: a `step` beyond it is refused.
+pub const MAX_PENDING_STEPS: u64 = 100_000;
+
+/// The world, its scene and what the wire remembers of it.
+pub struct Hosted {
+    pub world: World,
+    pub scene_text: String,
+    pub scene_name: PathBuf,
+    overrides: Vec<String>,
+    pub encoder: FrameEncoder,
+    statics_revision: Option<u64>,
+    pub snapshot: Vec<u8>,
+    pub paused: bool,
+    /// Steps asked for by `step` commands and not yet run: the host runs them in slices,
+    /// answering other clients between slices.
+    pub pending_steps: u64,
+    /// Steps run for `step` commands since the server started: a `step` is answered when
+    /// this reaches the count it asked for.
+    pub steps_run: u64,
+    /// A new world (reset, load) whose frame 0 is to be published.
+    pub fresh: bool,
+    pub overruns: u32,
+    pub last_step_ms: f32,
+    /// Bumped by every (re)load, so viewers can tell a new scene.
+    pub generation: u64,
+    scenes_dir: PathBuf,
+    limits: Limits,
+    pub health: Health,
+}
+
+/// What handling a command did.
+pub struct Handled {
+    pub reply: Reply,
+    /// The reply is due once [`Hosted::steps_run`] reaches this (a `step`); at once if 0.
+    pub due_at_step: u64,
+}
+
+impl Hosted {
+    pub fn load(
+        scene_text: String,
+        scene_name: PathBuf,
+        opts: &HostOptions,
+    ) -> anyhow::Result<Self> {
+        let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)?;
+        Ok(Hosted {
+            world,
+            scene_text,
+            scene_name,
+            overrides: opts.overrides.clone(),
+            encoder: FrameEncoder::new(opts.keyframe_interval),
+            statics_revision: None,
+            snapshot: Vec::new(),
+            paused: false,
+            pending_steps: 0,
+            steps_run: 0,
+            fresh: true,
+            overruns: 0,
+            last_step_ms: 0.0,
+            generation: 0,
+            scenes_dir: opts.scenes_dir.clone(),
+            limits: opts.limits.clone(),
+            health: Health::default(),
+        })
+    }
+
+    fn replace_world(&mut self, world: World) {
+        self.world = world;
+        self.generation += 1;
+        self.encoder.force_key_frame();
+        self.statics_revision = None;
+        self.fresh = true;
+    }
+
+    pub fn info(&self) -> WorldInfo {
+        let [lo, hi] = self.world.config.bounds;
+        WorldInfo {
+            scene: self
+                .scene_name
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| self.scene_name.display().to_string()),
+            bounds: [[lo.x, lo.y], [hi.x, hi.y]],
+            dt: self.world.config.dt,
+            groups: self.world.group_names().map(str::to_string).collect(),
+            generation: self.generation,
+            health: Some(self.health.clone()),
+        }
+    }
+
+    /// Re-encodes the statics snapshot if they changed; true when it did.
+    pub fn refresh_snapshot(&mut self) -> bool {
+        let rev = self.world.statics_revision();
+        if self.statics_revision == Some(rev) {
+            return false;
+        }
+        self.snapshot = wire::statics_snapshot(&self.world);
+        self.statics_revision = Some(rev);
+        true
+    }
+
+    pub fn encode_frame(&mut self) -> Vec<u8> {
+        wire::encode_frame(
+            &mut self.encoder,
+            &self.world,
+            self.last_step_ms,
+            self.overruns,
+        )
+    }
+
+    /// Applies one command at the frame boundary; the reply says what it did. A `step`
+    /// only queues its steps: the host runs them and answers when they are done.
+    pub fn handle(&mut self, command: &Command) -> Handled {
+        let frame = self.world.frame();
+        let mut due_at_step = 0;
+        let result: Result<Vec<String>, String> = match command {
+            Command::World(action) => self
+                .world
+                .apply(action)
+                .map(|o| o.ids)
+                .map_err(|e| e.to_string()),
+            Command::Server(ServerCommand::Pause) => {
+                self.paused = true;
+                Ok(Vec::new())
+            }
+            Command::Server(ServerCommand::Resume) => {
+                self.paused = false;
+                Ok(Vec::new())
+            }
+            Command::Server(ServerCommand::Step { n }) if *n > MAX_STEPS_PER_COMMAND => Err(
+                format!("`n` = {n} is more than {MAX_STEPS_PER_COMMAND} steps in one command"),
+            ),
+            Command::Server(ServerCommand::Step { n })
+                if self.pending_steps + u64::from(*n) > MAX_PENDING_STEPS =>
+            {
+                Err(format!(
+                    "{} steps are still to run: at most {MAX_PENDING_STEPS} may wait",
+                    self.pending_steps
+                ))
+            }
+            Command::Server(ServerCommand::Step { n }) => {
+                self.paused = true;
+                self.pending_steps += u64::from(*n);
+                due_at_step = self.steps_run + self.pending_steps;
+                Ok(Vec::new())
+            }
+            Command::Server(ServerCommand::Reset { paused }) => {
+                match scene::parse_with(
+                    &self.scene_text,
+                    &self.scene_name,
+                    &self.overrides,
+                    &self.limits,
+                ) {
+                    Ok(world) => {
+                        self.replace_world(world);
+                        self.paused = *paused;
+                        Ok(Vec::new())
+                    }
+                    Err(e) => Err(e.to_string()),
+                }
+            }
+            Command::Server(ServerCommand::Load { path, text }) => {
+                self.load_scene(path.as_deref(), text.as_deref())
+            }
+        };
+        let reply = match result {
+            Ok(ids) => {
+                self.health.applied += 1;
+                Reply {
+                    ok: true,
+                    frame,
+                    ids,
+                    error: None,
+                    id: None,
+                }
+            }
+            Err(error) => {
+                self.health.refused += 1;
+                due_at_step = 0;
+                Reply::refused(frame, short(&error, MAX_ERROR_BYTES))
+            }
+        };
+        Handled { reply, due_at_step }
+    }
+
+    fn load_scene(
+        &mut self,
+        path: Option<&str>,
+        text: Option<&str>,
+    ) -> Result<Vec<String>, String> {
+        let (text, name) = match (path, text) {
+            (Some(p), None) => {
+                let file = resolve_scene(&self.scenes_dir, p)?;
+                let text = read_scene(&file, &short(p, 64))?;
+                // Errors name the scene as the client asked for it, not where it lives.
+                (text, PathBuf::from(p))
+            }
+            (None, Some(t)) => (t.to_string(), PathBuf::from("<loaded scene>")),
+            _ => return Err("`load` takes either `path` or `text`".into()),
+        };
+        let world = scene::parse_with(&text, &name, &self.overrides, &self.limits)
+            .map_err(|e| e.to_string())?;
+        self.scene_text = text;
+        self.scene_name = name;
+        self.replace_world(world);
+        Ok(Vec::new())
+    }
+
+    pub fn step(&mut self) {
+        let t = Instant::now();
+        self.world.step();
+        self.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
+        self.health.frames += 1;
+    }
+}

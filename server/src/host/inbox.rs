@@ -1,0 +1,345 @@
+//! What zenoh's receive threads hand to the stepping thread.
+//!
+//! zenoh calls the callbacks below on its own threads; they never block, or a flood would
+//! stall every peer's traffic. Each one only checks and queues:
+//!
+//! - a command larger than the server's `command_bytes` limit is refused at once;
+//! - each sender has a token bucket (`rate` a second, `burst` at once): over it, the
+//!   command is dropped and counted;
+//! - each kind (fire-and-forget commands, requests, queries) has a bounded queue, in count
+//!   and in bytes: a command that finds it full is dropped and counted.
+//!
+//! A refused or dropped request is answered so, through the [`Outbox`]. The stepping thread
+//! takes commands and requests in turn (one of each while both wait), so a flood of one
+//! kind cannot starve the other.
+//!
+//! A sender is the zenoh id its session declares in zenoh's source info, which Ricochet's
+//! clients set; commands without one share a bucket. The id is the sender's own claim: a
+//! hostile peer may change it at will, so the buckets share capacity fairly among honest
+//! clients, while the queue bounds and the per-frame bounds keep the step safe from any.
+
+use std::collections::{HashMap, VecDeque};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
+
+use ricochet_protocol::command::{Event, Reply};
+use zenoh::query::Query;
+use zenoh::sample::Sample;
+
+use super::outbox::Outbox;
+
+/// Who sent a command: the zenoh id its session declares, if any.
+pub type Sender = Option<String>;
+
+/// Senders with a bucket of their own at most; others share the anonymous one.
+pub const MAX_SENDERS: usize = 4096;
+
+/// A command or request waiting for the frame boundary.
+pub struct Incoming {
+    pub payload: Vec<u8>,
+    pub sender: Sender,
+    /// The request to answer; none for a fire-and-forget command.
+    pub query: Option<Query>,
+}
+
+/// A query answered from what the server already has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ask {
+    State,
+    Snapshot,
+    Info,
+}
+
+/// How much the inbox holds and takes.
+#[derive(Clone, Copy, Debug)]
+pub struct InboxLimits {
+    /// Commands waiting at most, per kind (commands, requests).
+    pub queue: usize,
+    /// Bytes of commands waiting at most, per kind.
+    pub queue_bytes: usize,
+    /// Commands a second each sender may send, over time.
+    pub rate: f64,
+    /// Commands a sender may send at once above its rate.
+    pub burst: f64,
+    /// Queries (state, snapshot, info) waiting at most.
+    pub queries: usize,
+    /// The largest command taken, in bytes.
+    pub command_bytes: usize,
+}
+
+impl Default for InboxLimits {
+    fn default() -> Self {
+        InboxLimits {
+            queue: 4096,
+            queue_bytes: 16 << 20,
+            rate: 1000.0,
+            burst: 500.0,
+            queries: 1024,
+            command_bytes: 65_536,
+        }
+    }
+}
+
+/// What the inbox turned away since the server started.
+#[derive(Default)]
+pub struct Turned {
+    pub rate_limited: AtomicU64,
+    pub queue_full: AtomicU64,
+    pub too_large: AtomicU64,
+    pub queries_dropped: AtomicU64,
+}
+
+struct Bucket {
+    tokens: f64,
+    at: Instant,
+}
+
+#[derive(Default)]
+struct Queue {
+    items: VecDeque<Incoming>,
+    bytes: usize,
+}
+
+#[derive(Default)]
+struct Queues {
+    commands: Queue,
+    requests: Queue,
+    queries: VecDeque<(Ask, Query)>,
+    buckets: HashMap<Sender, Bucket>,
+    requests_next: bool,
+}
+
+pub struct Inbox {
+    queues: Mutex<Queues>,
+    limits: InboxLimits,
+    pub turned: Turned,
+    outbox: Outbox,
+    /// The frame commands now take effect in, for refusals sent from here.
+    frame: AtomicU64,
+}
+
+impl Inbox {
+    pub fn new(limits: InboxLimits, outbox: Outbox) -> Inbox {
+        Inbox {
+            queues: Mutex::new(Queues::default()),
+            limits,
+            turned: Turned::default(),
+            outbox,
+            frame: AtomicU64::new(0),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Queues> {
+        self.queues.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The frame refusals from the callbacks name.
+    pub fn set_frame(&self, frame: u64) {
+        self.frame.store(frame, Ordering::Relaxed);
+    }
+
+    /// A fire-and-forget command (zenoh's subscriber callback).
+    pub fn offer_command(&self, sample: Sample) {
+        let sender = sample
+            .source_info()
+            .map(|s| s.source_id().zid().to_string());
+        let payload = sample.payload().to_bytes().into_owned();
+        self.offer(payload, sender, None);
+    }
+
+    /// A request (zenoh's queryable callback).
+    pub fn offer_request(&self, query: Query) {
+        let sender = query.source_info().map(|s| s.source_id().zid().to_string());
+        let payload = query
+            .payload()
+            .map(|p| p.to_bytes().into_owned())
+            .unwrap_or_default();
+        self.offer(payload, sender, Some(query));
+    }
+
+    fn offer(&self, payload: Vec<u8>, sender: Sender, query: Option<Query>) {
+        let frame = self.frame.load(Ordering::Relaxed);
+        if payload.len() > self.limits.command_bytes {
+            self.turned.too_large.fetch_add(1, Ordering::Relaxed);
+            let error = format!(
+                "command of {} bytes is larger than the limit of {}",
+                payload.len(),
+                self.limits.command_bytes
+            );
+            return self.refuse(query, frame, error);
+        }
+        let mut q = self.lock();
+        if !take_token(&mut q.buckets, &sender, &self.limits) {
+            drop(q);
+            self.turned.rate_limited.fetch_add(1, Ordering::Relaxed);
+            let error = format!(
+                "rate limit: a sender may send {} commands a second ({} at once); this one was dropped",
+                self.limits.rate, self.limits.burst
+            );
+            return self.refuse(query, frame, error);
+        }
+        let limits = self.limits;
+        let queue = if query.is_some() {
+            &mut q.requests
+        } else {
+            &mut q.commands
+        };
+        if queue.items.len() >= limits.queue || queue.bytes + payload.len() > limits.queue_bytes {
+            let waiting = queue.items.len();
+            drop(q);
+            self.turned.queue_full.fetch_add(1, Ordering::Relaxed);
+            let error =
+                format!("server busy: {waiting} commands are waiting; this one was dropped");
+            return self.refuse(query, frame, error);
+        }
+        queue.bytes += payload.len();
+        queue.items.push_back(Incoming {
+            payload,
+            sender,
+            query,
+        });
+    }
+
+    /// Answers a refused request at once (through the outbox), and tells event
+    /// subscribers; a refused fire-and-forget command is only counted and logged.
+    fn refuse(&self, query: Option<Query>, frame: u64, error: String) {
+        match query {
+            Some(query) => {
+                let reply = Reply::refused(frame, error);
+                self.outbox.reply(
+                    query,
+                    serde_json::to_vec(&reply).expect("replies serialise"),
+                );
+            }
+            None => tracing::debug!(frame, "command dropped: {error}"),
+        }
+    }
+
+    /// A query for what the server already has (zenoh's queryable callback).
+    pub fn offer_query(&self, ask: Ask, query: Query) {
+        let mut q = self.lock();
+        if q.queries.len() >= self.limits.queries {
+            drop(q);
+            // Dropping the query ends it for the querier: no answer.
+            self.turned.queries_dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        q.queries.push_back((ask, query));
+    }
+
+    /// The next command or request, taking the two kinds in turn.
+    pub fn next(&self) -> Option<Incoming> {
+        let mut q = self.lock();
+        let taken = if q.requests_next {
+            pop(&mut q.requests)
+                .map(|i| (i, true))
+                .or_else(|| pop(&mut q.commands).map(|i| (i, false)))
+        } else {
+            pop(&mut q.commands)
+                .map(|i| (i, false))
+                .or_else(|| pop(&mut q.requests).map(|i| (i, true)))
+        };
+        let (incoming, was_request) = taken?;
+        // The other kind goes first next time.
+        q.requests_next = !was_request;
+        Some(incoming)
+    }
+
+    /// The next query, if any.
+    pub fn next_query(&self) -> Option<(Ask, Query)> {
+        self.lock().queries.pop_front()
+    }
+
+    /// An event for subscribers (used for refusals made at the frame boundary).
+    pub fn event(&self, event: &Event) {
+        self.outbox
+            .event(serde_json::to_vec(event).expect("events serialise"));
+    }
+}
+
+fn pop(queue: &mut Queue) -> Option<Incoming> {
+    let item = queue.items.pop_front()?;
+    queue.bytes -= item.payload.len();
+    Some(item)
+}
+
+/// Takes one token from `sender`'s bucket, refilled at `rate` a second up to `burst`.
+fn take_token(
+    buckets: &mut HashMap<Sender, Bucket>,
+    sender: &Sender,
+    limits: &InboxLimits,
+) -> bool {
+    let now = Instant::now();
+    let key = if buckets.contains_key(sender) || buckets.len() < MAX_SENDERS {
+        sender.clone()
+    } else {
+        // Forget senders whose buckets are full again (idle ones); else share.
+        buckets.retain(|_, b| {
+            b.tokens + limits.rate * now.duration_since(b.at).as_secs_f64() < limits.burst
+        });
+        if buckets.len() < MAX_SENDERS {
+            sender.clone()
+        } else {
+            None
+        }
+    };
+    let bucket = buckets.entry(key).or_insert(Bucket {
+        tokens: limits.burst,
+        at: now,
+    });
+    bucket.tokens = (bucket.tokens + limits.rate * now.duration_since(bucket.at).as_secs_f64())
+        .min(limits.burst);
+    bucket.at = now;
+    if bucket.tokens >= 1.0 {
+        bucket.tokens -= 1.0;
+        true
+    } else {
+        false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_bucket_gives_its_burst_then_its_rate() {
+        let limits = InboxLimits {
+            rate: 10.0,
+            burst: 5.0,
+            ..InboxLimits::default()
+        };
+        let mut buckets = HashMap::new();
+        let alice = Some("a".to_string());
+        let taken = (0..20)
+            .filter(|_| take_token(&mut buckets, &alice, &limits))
+            .count();
+        assert_eq!(taken, 5, "the burst, then nothing at once");
+        // Another sender has a bucket of its own.
+        let bob = Some("b".to_string());
+        assert!(take_token(&mut buckets, &bob, &limits));
+        std::thread::sleep(std::time::Duration::from_millis(350));
+        let later = (0..20)
+            .filter(|_| take_token(&mut buckets, &alice, &limits))
+            .count();
+        assert!((3..=5).contains(&later), "about 0.35 s of rate: {later}");
+    }
+
+    #[test]
+    fn past_the_sender_cap_newcomers_share_one_bucket() {
+        let limits = InboxLimits {
+            rate: 0.001,
+            burst: 1.0,
+            ..InboxLimits::default()
+        };
+        let mut buckets = HashMap::new();
+        for i in 0..MAX_SENDERS {
+            assert!(take_token(&mut buckets, &Some(i.to_string()), &limits));
+        }
+        // Every bucket is empty, so none is forgotten: newcomers share the anonymous one.
+        assert!(take_token(&mut buckets, &Some("new-1".into()), &limits));
+        assert!(!take_token(&mut buckets, &Some("new-2".into()), &limits));
+        assert!(buckets.len() <= MAX_SENDERS + 1);
+    }
+}

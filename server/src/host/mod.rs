@@ -1,0 +1,507 @@
+//! The authoritative server: hosts one world on zenoh and runs it in real time.
+//!
+//! The clock is an accumulator of whole steps: step k is due at `start + k dt`, computed
+//! from integers of nanoseconds, so it does not drift over hours. Commands that arrived
+//! since the last step are applied at the frame boundary, in arrival order per kind
+//! (commands and requests taken in turn), each stamped with the frame it took effect in. A
+//! step that starts more than one `dt` late is counted as an overrun; after more than
+//! [`MAX_CATCH_UP`] late steps the clock is re-anchored (the lost steps are counted, never
+//! silently dropped).
+//!
+//! Nothing a peer does can stall the step: zenoh's threads only queue what arrives
+//! ([`inbox`]), replies and events leave from a thread of their own ([`outbox`]), frames
+//! and snapshots are published with `Drop` congestion control, at most
+//! [`MAX_COMMANDS_PER_FRAME`] commands and [`MAX_QUERIES_PER_PASS`] queries are served per
+//! pass, and the steps a `step` command asks for run in slices of at most [`STEP_SLICE`],
+//! with other clients served between slices.
+
+pub mod answered;
+pub mod hosted;
+pub mod inbox;
+pub mod outbox;
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, Context, Result};
+use ricochet_engine::world::Limits;
+use ricochet_protocol::command::{Command, Event, Health, Reply};
+use ricochet_protocol::keys::WorldKeys;
+use ricochet_protocol::net::Network;
+use ricochet_protocol::world as wire;
+use zenoh::qos::CongestionControl;
+use zenoh::query::Query;
+use zenoh::Wait;
+
+use answered::{Answer, Answered};
+use hosted::{Handled, Hosted};
+use inbox::{Ask, Inbox, InboxLimits, Incoming};
+use outbox::Outbox;
+
+pub use hosted::{MAX_PENDING_STEPS, MAX_STEPS_PER_COMMAND};
+
+/// Late steps run back to back before the clock gives up and re-anchors.
+pub const MAX_CATCH_UP: u64 = 5;
+/// Commands handled per frame boundary at most; the rest wait for the next one, so a
+/// flood cannot stall the clock.
+pub const MAX_COMMANDS_PER_FRAME: usize = 1000;
+/// Queries (state, snapshot, info) answered per pass of the loop at most.
+pub const MAX_QUERIES_PER_PASS: usize = 64;
+/// Wall time the steps of `step` commands may take before the host serves its other
+/// clients again.
+pub const STEP_SLICE: Duration = Duration::from_millis(10);
+/// How long the server's session waits for a slow peer to take a blocking message (a
+/// reply to a query asked with `Block`) before zenoh closes that peer's link: zenoh's
+/// default is 5 s. Only the outbox thread ever waits so.
+pub const BLOCK_WAIT_BEFORE_CLOSE: Duration = Duration::from_millis(1000);
+
+/// How to host a world.
+#[derive(Clone, Debug)]
+pub struct HostOptions {
+    pub scene: PathBuf,
+    pub world: String,
+    pub network: Network,
+    /// Start paused (step with commands).
+    pub paused: bool,
+    /// `NAME=VALUE` overrides of `[world]` fields.
+    pub overrides: Vec<String>,
+    /// A key frame every this many frames.
+    pub keyframe_interval: u64,
+    /// Stop after this many frames (for scripted runs); run until killed otherwise.
+    pub max_frames: Option<u64>,
+    /// Append every published frame to this file as a dump line (full precision, as
+    /// `simulate --dump` writes them), flushed each frame.
+    pub dump: Option<PathBuf>,
+    /// Where `load` finds scenes by name; nothing outside it is read.
+    pub scenes_dir: PathBuf,
+    /// The limits every world hosted here runs under at most (a scene's `[limits]` may
+    /// lower them).
+    pub limits: Limits,
+    /// Steps per second of wall time at most: a world whose `dt` is shorter runs slower
+    /// than real time rather than flooding its viewers.
+    pub max_rate: f64,
+    /// Per-sender rates and queue bounds (the command size bound is `limits`').
+    pub inbox: InboxLimits,
+}
+
+/// The server's zenoh configuration: the network's, with the receive size bounded to what
+/// a command needs and a blocked send bounded in time (unless a configuration file was
+/// given: then its values hold, and `assets/zenoh/server.json5` sets both).
+pub fn server_config(opts: &HostOptions) -> Result<zenoh::Config> {
+    let mut config = opts.network.config()?;
+    if opts.network.config.is_none() {
+        let max_message = (opts.limits.command_bytes as usize).saturating_add(64 << 10);
+        for (key, value) in [
+            (
+                "transport/link/rx/max_message_size",
+                max_message.to_string(),
+            ),
+            (
+                "transport/link/tx/queue/congestion_control/block/wait_before_close",
+                BLOCK_WAIT_BEFORE_CLOSE.as_micros().to_string(),
+            ),
+        ] {
+            config
+                .insert_json5(key, &value)
+                .map_err(|e| anyhow!("zenoh configuration {key} = {value}: {e}"))?;
+        }
+    }
+    Ok(config)
+}
+
+/// The server's counts now.
+fn health(host: &Hosted, inbox: &Inbox, outbox: &Outbox) -> Health {
+    let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
+    Health {
+        overruns: u64::from(host.overruns),
+        rate_limited: load(&inbox.turned.rate_limited),
+        queue_full: load(&inbox.turned.queue_full),
+        refused: host.health.refused + load(&inbox.turned.too_large),
+        unsent: load(&outbox.unsent) + load(&inbox.turned.queries_dropped),
+        ..host.health.clone()
+    }
+}
+
+/// A reply waiting for the steps its `step` asked for.
+struct Deferred {
+    due_at_step: u64,
+    query: Query,
+    reply: Reply,
+}
+
+/// Applies one command or request at the frame boundary: a retried id gets its first
+/// answer, anything else is handled by the world; every handled command becomes an event.
+fn apply_incoming(
+    host: &mut Hosted,
+    incoming: Incoming,
+    answered: &mut Answered,
+    deferred: &mut Vec<Deferred>,
+    inbox: &Inbox,
+    outbox: &Outbox,
+) {
+    let Incoming {
+        payload,
+        sender,
+        query,
+    } = incoming;
+    let frame = host.world.frame();
+    let (id, parsed) = Command::parse_request(&payload, host.world.limits().command_bytes as usize);
+    let answer = match id.as_deref().and_then(|id| answered.get(&sender, id)) {
+        Some(first) => {
+            host.health.retries += 1;
+            first.clone()
+        }
+        None => {
+            let Handled {
+                mut reply,
+                due_at_step,
+            } = match &parsed {
+                Ok(command) => host.handle(command),
+                Err(error) => {
+                    host.health.refused += 1;
+                    Handled {
+                        reply: Reply::refused(frame, error.clone()),
+                        due_at_step: 0,
+                    }
+                }
+            };
+            reply.id = id.clone();
+            if !reply.ok {
+                tracing::debug!(
+                    frame,
+                    "command refused: {}",
+                    reply.error.as_deref().unwrap_or("")
+                );
+            }
+            inbox.event(&Event {
+                frame: reply.frame,
+                ok: reply.ok,
+                command: parsed.ok(),
+                ids: reply.ids.clone(),
+                error: reply.error.clone(),
+            });
+            let answer = Answer { reply, due_at_step };
+            if let Some(id) = id {
+                answered.remember(sender, id, answer.clone());
+            }
+            answer
+        }
+    };
+    if let Some(query) = query {
+        if answer.due_at_step > host.steps_run {
+            deferred.push(Deferred {
+                due_at_step: answer.due_at_step,
+                query,
+                reply: answer.reply,
+            });
+        } else {
+            outbox.reply(
+                query,
+                serde_json::to_vec(&answer.reply).expect("replies serialise"),
+            );
+        }
+    }
+}
+
+/// Hosts a world until killed (or `max_frames`).
+pub fn run(opts: HostOptions) -> Result<()> {
+    let keys = WorldKeys::new(&opts.world).map_err(|e| anyhow!(e))?;
+    let text = std::fs::read_to_string(&opts.scene)
+        .with_context(|| format!("cannot read scene {}", opts.scene.display()))?;
+    let mut host = Hosted::load(text, opts.scene.clone(), &opts)?;
+    host.paused = opts.paused;
+
+    let mut dump = match &opts.dump {
+        Some(path) => Some(std::io::BufWriter::new(
+            std::fs::File::create(path)
+                .with_context(|| format!("cannot create dump {}", path.display()))?,
+        )),
+        None => None,
+    };
+
+    let session = zenoh::open(server_config(&opts)?)
+        .wait()
+        .map_err(|e| anyhow!("cannot open the server's zenoh session: {e}"))?;
+    let z = |e: zenoh::Error| anyhow!("zenoh: {e}");
+    let frames = session
+        .declare_publisher(&keys.frame)
+        .congestion_control(CongestionControl::Drop)
+        .wait()
+        .map_err(z)?;
+    let snapshots = session
+        .declare_publisher(&keys.snapshot)
+        .congestion_control(CongestionControl::Drop)
+        .wait()
+        .map_err(z)?;
+    let events = session
+        .declare_publisher(keys.event.clone())
+        .congestion_control(CongestionControl::Drop)
+        .wait()
+        .map_err(z)?;
+    let outbox = Outbox::start(events);
+    let inbox = Arc::new(Inbox::new(
+        InboxLimits {
+            command_bytes: opts.limits.command_bytes as usize,
+            ..opts.inbox
+        },
+        outbox.clone(),
+    ));
+    let to = |inbox: &Arc<Inbox>| inbox.clone();
+    let _commands = session
+        .declare_subscriber(&keys.cmd)
+        .callback({
+            let inbox = to(&inbox);
+            move |sample| inbox.offer_command(sample)
+        })
+        .wait()
+        .map_err(z)?;
+    let _requests = session
+        .declare_queryable(&keys.rpc)
+        .callback({
+            let inbox = to(&inbox);
+            move |query| inbox.offer_request(query)
+        })
+        .wait()
+        .map_err(z)?;
+    let mut queryables = Vec::new();
+    for (key, ask) in [
+        (&keys.snapshot, Ask::Snapshot),
+        (&keys.state, Ask::State),
+        (&keys.info, Ask::Info),
+    ] {
+        let inbox = to(&inbox);
+        queryables.push(
+            session
+                .declare_queryable(key)
+                .callback(move |query| inbox.offer_query(ask, query))
+                .wait()
+                .map_err(z)?,
+        );
+    }
+    let _alive = session
+        .liveliness()
+        .declare_token(keys.alive_token(&session.zid().to_string()))
+        .wait()
+        .map_err(z)?;
+    tracing::info!(
+        world = %opts.world,
+        scene = %opts.scene.display(),
+        mode = opts.network.mode_name(),
+        listen = ?opts.network.listen,
+        connect = ?opts.network.connect,
+        paused = host.paused,
+        "serving"
+    );
+
+    // Every frame leaves with `Drop` congestion control: a slow subscriber loses frames
+    // (and resyncs from the next key frame or the state query), it never holds the clock.
+    let mut publish = |h: &mut Hosted| {
+        h.fresh = false;
+        if h.refresh_snapshot() {
+            if let Err(e) = snapshots.put(h.snapshot.clone()).wait() {
+                tracing::warn!("publishing the snapshot failed: {e}");
+            }
+        }
+        let bytes = h.encode_frame();
+        if let Err(e) = frames.put(bytes).wait() {
+            tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
+        }
+        if let Some(out) = dump.as_mut() {
+            let written = wire::write_frame(out, &h.world).and_then(|()| out.flush());
+            if let Err(e) = written {
+                tracing::warn!("writing frame {} to the dump failed: {e}", h.world.frame());
+            }
+        }
+    };
+    // Frame 0: the state before the first step.
+    publish(&mut host);
+
+    // The wall time between steps: the world's dt, or longer where it would step faster
+    // than `max_rate`.
+    let min_interval_ns = (1e9 / opts.max_rate).round() as u64;
+    let interval = |h: &Hosted| {
+        let dt_ns = (h.world.config.dt * 1e9).round() as u64;
+        if dt_ns < min_interval_ns {
+            tracing::warn!(
+                dt = h.world.config.dt,
+                max_rate = opts.max_rate,
+                "dt is shorter than 1/max-rate: the world runs slower than real time"
+            );
+        }
+        dt_ns.max(min_interval_ns)
+    };
+    let mut dt_ns = interval(&host);
+    let mut last_dt = host.world.config.dt;
+    let mut anchor = Instant::now();
+    let mut due: u64 = 1; // steps since the anchor, the next one included
+    let mut answered = Answered::default();
+    let mut deferred: Vec<Deferred> = Vec::new();
+    // The state query's answer, kept for the frame it was made at.
+    let mut state: Option<((u64, u64), Vec<u8>)> = None;
+    let mut last_report = (Instant::now(), Health::default());
+    loop {
+        inbox.set_frame(host.world.frame());
+
+        // Queries are answered from what the server has, a bounded number per pass.
+        for _ in 0..MAX_QUERIES_PER_PASS {
+            let Some((ask, query)) = inbox.next_query() else {
+                break;
+            };
+            let body = match ask {
+                Ask::Snapshot => {
+                    host.refresh_snapshot();
+                    host.snapshot.clone()
+                }
+                Ask::State => {
+                    let at = (host.generation, host.world.frame());
+                    match &state {
+                        Some((made, bytes)) if *made == at => bytes.clone(),
+                        _ => {
+                            let bytes = host.encoder.resync_frame().expect("frame 0 was published");
+                            state = Some((at, bytes.clone()));
+                            bytes
+                        }
+                    }
+                }
+                Ask::Info => {
+                    let mut info = host.info();
+                    info.health = Some(health(&host, &inbox, &outbox));
+                    serde_json::to_vec(&info).expect("world info serialises")
+                }
+            };
+            host.health.queries += 1;
+            outbox.reply(query, body);
+        }
+
+        // The frame boundary: commands and requests that arrived, up to a bound.
+        let was_paused = host.paused;
+        for _ in 0..MAX_COMMANDS_PER_FRAME {
+            let Some(incoming) = inbox.next() else {
+                break;
+            };
+            apply_incoming(
+                &mut host,
+                incoming,
+                &mut answered,
+                &mut deferred,
+                &inbox,
+                &outbox,
+            );
+            if host.fresh {
+                // A new world's frame 0 goes out at once.
+                publish(&mut host);
+            }
+        }
+
+        // Steps asked for by `step` commands, in a slice; then the answers now due.
+        if host.pending_steps > 0 {
+            let began = Instant::now();
+            while host.pending_steps > 0 && began.elapsed() < STEP_SLICE {
+                host.step();
+                host.pending_steps -= 1;
+                host.steps_run += 1;
+                publish(&mut host);
+            }
+        }
+        if !deferred.is_empty() {
+            let (ready, waiting): (Vec<_>, Vec<_>) = deferred
+                .drain(..)
+                .partition(|d| d.due_at_step <= host.steps_run);
+            deferred = waiting;
+            for d in ready {
+                outbox.reply(
+                    d.query,
+                    serde_json::to_vec(&d.reply).expect("replies serialise"),
+                );
+            }
+        }
+
+        if last_report.0.elapsed() >= Duration::from_secs(10) {
+            let now = health(&host, &inbox, &outbox);
+            if now.refused + now.rate_limited + now.queue_full + now.unsent
+                > last_report.1.refused
+                    + last_report.1.rate_limited
+                    + last_report.1.queue_full
+                    + last_report.1.unsent
+            {
+                tracing::warn!(
+                    refused = now.refused - last_report.1.refused,
+                    rate_limited = now.rate_limited - last_report.1.rate_limited,
+                    queue_full = now.queue_full - last_report.1.queue_full,
+                    unsent = now.unsent - last_report.1.unsent,
+                    "turned away in the last 10 s"
+                );
+            }
+            last_report = (Instant::now(), now);
+        }
+
+        let new_dt = if host.world.config.dt != last_dt {
+            last_dt = host.world.config.dt;
+            interval(&host)
+        } else {
+            dt_ns
+        };
+        if new_dt != dt_ns || (was_paused && !host.paused) {
+            // The clock restarts from now at the new rate.
+            dt_ns = new_dt;
+            anchor = Instant::now();
+            due = 1;
+        }
+
+        if opts.max_frames.is_some_and(|m| host.world.frame() >= m) {
+            tracing::info!(
+                frame = host.world.frame(),
+                overruns = host.overruns,
+                "stopping after the last frame"
+            );
+            return Ok(());
+        }
+        if host.pending_steps > 0 {
+            // More steps to run: serve the others, then the next slice, without sleeping.
+            continue;
+        }
+
+        let deadline = anchor + Duration::from_nanos(due.saturating_mul(dt_ns));
+        let now = Instant::now();
+        if now < deadline {
+            std::thread::sleep((deadline - now).min(Duration::from_millis(20)));
+            continue;
+        }
+        if host.paused {
+            anchor = Instant::now();
+            due = 1;
+            continue;
+        }
+        let late_steps = ((now - deadline).as_nanos() / dt_ns.max(1) as u128) as u64;
+        if late_steps >= 1 {
+            host.overruns = host.overruns.saturating_add(1);
+        }
+        if late_steps > MAX_CATCH_UP {
+            tracing::warn!(
+                late_steps,
+                frame = host.world.frame(),
+                "the world cannot keep real time; the clock re-anchors"
+            );
+            host.overruns = host
+                .overruns
+                .saturating_add(late_steps.min(u32::MAX as u64) as u32);
+            anchor = now;
+            due = 0;
+        }
+        host.step();
+        publish(&mut host);
+        due += 1;
+    }
+}
+
+/// Runs a bare zenoh router: where servers and clients on several hosts meet.
+pub fn run_router(network: &Network) -> Result<()> {
+    let _session = network.open()?;
+    tracing::info!(listen = ?network.listen, connect = ?network.connect, "router up");
+    loop {
+        std::thread::sleep(Duration::from_secs(3600));
+    }
+}
