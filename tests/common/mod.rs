@@ -88,7 +88,11 @@ impl Server {
                 &endpoint,
             ])
             .args(extra)
-            .env("RUST_LOG", "warn")
+            // RICOCHET_SERVER_LOG=ricochet_server=trace shows what a test's server does.
+            .env(
+                "RUST_LOG",
+                std::env::var("RICOCHET_SERVER_LOG").unwrap_or_else(|_| "warn".into()),
+            )
             .stdout(Stdio::null())
             .stderr(Stdio::inherit())
             .spawn()

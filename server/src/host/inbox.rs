@@ -6,12 +6,15 @@
 //! - a command larger than the server's `command_bytes` limit is refused at once;
 //! - each sender has a token bucket (`rate` a second, `burst` at once): over it, the
 //!   command is dropped and counted;
-//! - each kind (fire-and-forget commands, requests, queries) has a bounded queue, in count
-//!   and in bytes: a command that finds it full is dropped and counted.
+//! - each sender has a queue of its own, commands and requests together in the order they
+//!   came; queues are bounded each in count, and all together in count and bytes: a
+//!   command that finds them full is dropped and counted. Queries (state, snapshot, info)
+//!   have a bounded queue of their own.
 //!
 //! A refused or dropped request is answered so, through the [`Outbox`]. The stepping thread
-//! takes commands and requests in turn (one of each while both wait), so a flood of one
-//! kind cannot starve the other.
+//! takes one command from each sender in turn (round robin), so a sender's commands keep
+//! their order, and a flood from one sender, of commands or of requests, delays only that
+//! sender's own.
 //!
 //! A sender is the zenoh id its session declares in zenoh's source info, which Ricochet's
 //! clients set; commands without one share a bucket. The id is the sender's own claim: a
@@ -54,9 +57,9 @@ pub enum Ask {
 /// How much the inbox holds and takes.
 #[derive(Clone, Copy, Debug)]
 pub struct InboxLimits {
-    /// Commands waiting at most, per kind (commands, requests).
+    /// Commands (and requests) waiting at most, per sender; four times this in all.
     pub queue: usize,
-    /// Bytes of commands waiting at most, per kind.
+    /// Bytes of commands waiting at most, in all.
     pub queue_bytes: usize,
     /// Commands a second each sender may send, over time.
     pub rate: f64,
@@ -96,18 +99,16 @@ struct Bucket {
 }
 
 #[derive(Default)]
-struct Queue {
-    items: VecDeque<Incoming>,
-    bytes: usize,
-}
-
-#[derive(Default)]
 struct Queues {
-    commands: Queue,
-    requests: Queue,
+    /// Each sender's commands, in the order they came.
+    waiting: HashMap<Sender, VecDeque<Incoming>>,
+    /// The senders with commands waiting, in the order they are served.
+    turns: VecDeque<Sender>,
+    /// Commands and bytes waiting in all.
+    count: usize,
+    bytes: usize,
     queries: VecDeque<(Ask, Query)>,
     buckets: HashMap<Sender, Bucket>,
-    requests_next: bool,
 }
 
 pub struct Inbox {
@@ -159,6 +160,12 @@ impl Inbox {
     }
 
     fn offer(&self, payload: Vec<u8>, sender: Sender, query: Option<Query>) {
+        tracing::trace!(
+            ?sender,
+            request = query.is_some(),
+            bytes = payload.len(),
+            "offered"
+        );
         let frame = self.frame.load(Ordering::Relaxed);
         if payload.len() > self.limits.command_bytes {
             self.turned.too_large.fetch_add(1, Ordering::Relaxed);
@@ -180,25 +187,32 @@ impl Inbox {
             return self.refuse(query, frame, error);
         }
         let limits = self.limits;
-        let queue = if query.is_some() {
-            &mut q.requests
-        } else {
-            &mut q.commands
-        };
-        if queue.items.len() >= limits.queue || queue.bytes + payload.len() > limits.queue_bytes {
-            let waiting = queue.items.len();
+        let queued = q.waiting.get(&sender).map_or(0, VecDeque::len);
+        if queued >= limits.queue
+            || q.count >= limits.queue.saturating_mul(4)
+            || q.bytes + payload.len() > limits.queue_bytes
+        {
+            let waiting = q.count;
             drop(q);
             self.turned.queue_full.fetch_add(1, Ordering::Relaxed);
-            let error =
-                format!("server busy: {waiting} commands are waiting; this one was dropped");
+            let error = format!(
+                "server busy: {waiting} commands are waiting ({queued} of this sender's); this one was dropped"
+            );
             return self.refuse(query, frame, error);
         }
-        queue.bytes += payload.len();
-        queue.items.push_back(Incoming {
-            payload,
-            sender,
-            query,
-        });
+        q.count += 1;
+        q.bytes += payload.len();
+        if queued == 0 {
+            q.turns.push_back(sender.clone());
+        }
+        q.waiting
+            .entry(sender.clone())
+            .or_default()
+            .push_back(Incoming {
+                payload,
+                sender,
+                query,
+            });
     }
 
     /// Answers a refused request at once (through the outbox), and tells event
@@ -228,21 +242,19 @@ impl Inbox {
         q.queries.push_back((ask, query));
     }
 
-    /// The next command or request, taking the two kinds in turn.
+    /// The next command or request: the oldest of the sender whose turn it is.
     pub fn next(&self) -> Option<Incoming> {
         let mut q = self.lock();
-        let taken = if q.requests_next {
-            pop(&mut q.requests)
-                .map(|i| (i, true))
-                .or_else(|| pop(&mut q.commands).map(|i| (i, false)))
+        let sender = q.turns.pop_front()?;
+        let queue = q.waiting.get_mut(&sender)?;
+        let incoming = queue.pop_front()?;
+        if queue.is_empty() {
+            q.waiting.remove(&sender);
         } else {
-            pop(&mut q.commands)
-                .map(|i| (i, false))
-                .or_else(|| pop(&mut q.requests).map(|i| (i, true)))
-        };
-        let (incoming, was_request) = taken?;
-        // The other kind goes first next time.
-        q.requests_next = !was_request;
+            q.turns.push_back(sender);
+        }
+        q.count -= 1;
+        q.bytes -= incoming.payload.len();
         Some(incoming)
     }
 
@@ -256,12 +268,6 @@ impl Inbox {
         self.outbox
             .event(serde_json::to_vec(event).expect("events serialise"));
     }
-}
-
-fn pop(queue: &mut Queue) -> Option<Incoming> {
-    let item = queue.items.pop_front()?;
-    queue.bytes -= item.payload.len();
-    Some(item)
 }
 
 /// Takes one token from `sender`'s bucket, refilled at `rate` a second up to `burst`.
@@ -302,6 +308,65 @@ fn take_token(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn inbox(queue: usize) -> Inbox {
+        let limits = InboxLimits {
+            queue,
+            ..InboxLimits::default()
+        };
+        Inbox::new(limits, Outbox::detached())
+    }
+
+    fn take_all(inbox: &Inbox) -> Vec<(Sender, u8)> {
+        std::iter::from_fn(|| inbox.next())
+            .map(|i| (i.sender, i.payload[0]))
+            .collect()
+    }
+
+    #[test]
+    fn senders_are_served_in_turn_each_in_its_own_order() {
+        let inbox = inbox(100);
+        let (a, b) = (Some("a".to_string()), Some("b".to_string()));
+        for n in 0..5 {
+            inbox.offer(vec![n], a.clone(), None);
+        }
+        inbox.offer(vec![10], b.clone(), None);
+        inbox.offer(vec![11], b.clone(), None);
+        inbox.offer(vec![20], None, None);
+        let order = take_all(&inbox);
+        assert_eq!(
+            order,
+            vec![
+                (a.clone(), 0),
+                (b.clone(), 10),
+                (None, 20),
+                (a.clone(), 1),
+                (b.clone(), 11),
+                (a.clone(), 2),
+                (a.clone(), 3),
+                (a.clone(), 4),
+            ]
+        );
+        assert!(inbox.next().is_none());
+    }
+
+    #[test]
+    fn a_full_queue_drops_and_counts_and_others_still_get_in() {
+        let inbox = inbox(3);
+        let a = Some("a".to_string());
+        for n in 0..10 {
+            inbox.offer(vec![n], a.clone(), None);
+        }
+        inbox.offer(vec![99], Some("b".into()), None);
+        assert_eq!(inbox.turned.queue_full.load(Ordering::Relaxed), 7);
+        let order = take_all(&inbox);
+        assert_eq!(order.len(), 4, "{order:?}");
+        assert!(order.contains(&(Some("b".into()), 99)));
+        // Too large for the command limit: refused before queueing.
+        inbox.offer(vec![0; 70_000], a.clone(), None);
+        assert_eq!(inbox.turned.too_large.load(Ordering::Relaxed), 1);
+        assert!(inbox.next().is_none());
+    }
 
     #[test]
     fn a_bucket_gives_its_burst_then_its_rate() {

@@ -169,6 +169,12 @@ fn apply_incoming(
                 }
             };
             reply.id = id.clone();
+            tracing::trace!(
+                frame,
+                ok = reply.ok,
+                pending = host.pending_steps,
+                "applied"
+            );
             if !reply.ok {
                 tracing::debug!(
                     frame,

@@ -58,6 +58,17 @@ impl Outbox {
         Outbox { tx, unsent }
     }
 
+    /// An outbox whose thread never runs: everything sent to it counts as unsent (for
+    /// tests of what feeds it).
+    #[cfg(test)]
+    pub fn detached() -> Outbox {
+        let (tx, _) = sync_channel::<Out>(1);
+        Outbox {
+            tx,
+            unsent: Arc::new(AtomicU64::new(0)),
+        }
+    }
+
     /// Queues a reply to `query`; never blocks.
     pub fn reply(&self, query: Query, body: Vec<u8>) {
         self.send(Out::Reply(query, body));
