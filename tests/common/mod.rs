@@ -76,18 +76,23 @@ pub struct Server {
 
 impl Server {
     pub fn start(scene_name: &str, world: &str, extra: &[&str]) -> Server {
-        let endpoint = free_endpoint();
+        let scene = scene(scene_name);
+        let mut args = vec!["--scene", scene.as_str()];
+        args.extend_from_slice(extra);
+        Server::launch(world, &args)
+    }
+
+    /// `ricochet-server run --world WORLD --listen ENDPOINT ARGS`, once it answers.
+    pub fn launch(world: &str, args: &[&str]) -> Server {
+        Server::launch_at(&free_endpoint(), world, args)
+    }
+
+    /// [`Server::launch`] on `endpoint` (where a killed server listened, say).
+    pub fn launch_at(endpoint: &str, world: &str, args: &[&str]) -> Server {
+        let endpoint = endpoint.to_string();
         let child = Process::new(bin("ricochet-server"))
-            .args([
-                "run",
-                "--scene",
-                &scene(scene_name),
-                "--world",
-                world,
-                "--listen",
-                &endpoint,
-            ])
-            .args(extra)
+            .args(["run", "--world", world, "--listen", &endpoint])
+            .args(args)
             // RICOCHET_SERVER_LOG=ricochet_server=trace shows what a test's server does.
             .env(
                 "RUST_LOG",
@@ -104,6 +109,12 @@ impl Server {
         };
         server.wait_up();
         server
+    }
+
+    /// Kills the server at once (SIGKILL): no chance to flush or say goodbye.
+    pub fn kill(mut self) {
+        self._process.0.kill().expect("kill the server");
+        self._process.0.wait().expect("the killed server is reaped");
     }
 
     pub fn network(&self) -> Network {

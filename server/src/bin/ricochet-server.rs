@@ -36,8 +36,8 @@ struct Cli {
 #[derive(Args)]
 struct RunArgs {
     /// The scene file (TOML).
-    #[arg(long)]
-    scene: PathBuf,
+    #[arg(long, required_unless_present = "resume")]
+    scene: Option<PathBuf>,
     /// The world's name in key expressions.
     #[arg(long, default_value = DEFAULT_WORLD)]
     world: String,
@@ -84,6 +84,16 @@ struct RunArgs {
     /// they are dropped and requests answered so.
     #[arg(long, default_value_t = 4096, value_name = "N")]
     queue: usize,
+    /// Write every accepted command, with the frame it took effect in, and every stepped
+    /// frame to FILE (JSON Lines, each line flushed as written), so the world can be
+    /// resumed after a crash with --resume FILE.
+    #[arg(long, value_name = "FILE", conflicts_with = "resume")]
+    journal: Option<PathBuf>,
+    /// Rebuild the world a journal holds, bit for bit, to its last frame, and go on
+    /// (appending to the same journal). The journal gives the scene, world name,
+    /// overrides and limits; --scene, --world, --set and --limit are not needed.
+    #[arg(long, value_name = "FILE")]
+    resume: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -224,6 +234,8 @@ fn main() -> Result<()> {
             sender_rate,
             sender_burst,
             queue,
+            journal,
+            resume,
         }) => {
             for (flag, value) in [
                 ("--sender-rate", sender_rate),
@@ -241,9 +253,10 @@ fn main() -> Result<()> {
                     "--max-rate {max_rate}: must be a number of steps per second above 0"
                 );
             }
-            let scenes_dir = match scenes {
-                Some(dir) => dir,
-                None => scene
+            let scenes_dir = match (scenes, &scene) {
+                (Some(dir), _) => dir,
+                (None, None) => PathBuf::from("."),
+                (None, Some(scene)) => scene
                     .parent()
                     .filter(|p| !p.as_os_str().is_empty())
                     .unwrap_or(Path::new("."))
@@ -267,6 +280,8 @@ fn main() -> Result<()> {
                     queue,
                     ..InboxLimits::default()
                 },
+                journal,
+                resume,
             })
         }
         Command::Bench {

@@ -217,12 +217,18 @@ impl Hosted {
             (None, Some(t)) => (t.to_string(), PathBuf::from("<loaded scene>")),
             _ => return Err("`load` takes either `path` or `text`".into()),
         };
+        self.adopt_scene(text, name)?;
+        Ok(Vec::new())
+    }
+
+    /// Replaces the world by the scene `text` (named `name` in errors and the info).
+    pub fn adopt_scene(&mut self, text: String, name: PathBuf) -> Result<(), String> {
         let world = scene::parse_with(&text, &name, &self.overrides, &self.limits)
             .map_err(|e| e.to_string())?;
         self.scene_text = text;
         self.scene_name = name;
         self.replace_world(world);
-        Ok(Vec::new())
+        Ok(())
     }
 
     pub fn step(&mut self) {

@@ -18,6 +18,7 @@
 pub mod answered;
 pub mod hosted;
 pub mod inbox;
+pub mod journal;
 pub mod outbox;
 
 use std::io::Write;
@@ -39,6 +40,7 @@ use zenoh::Wait;
 use answered::{Answer, Answered};
 use hosted::{Handled, Hosted};
 use inbox::{Ask, Inbox, InboxLimits, Incoming};
+use journal::Journal;
 use outbox::Outbox;
 
 pub use hosted::{MAX_PENDING_STEPS, MAX_STEPS_PER_COMMAND};
@@ -61,7 +63,8 @@ pub const BLOCK_WAIT_BEFORE_CLOSE: Duration = Duration::from_millis(1000);
 /// How to host a world.
 #[derive(Clone, Debug)]
 pub struct HostOptions {
-    pub scene: PathBuf,
+    /// The scene to start from (none when resuming: the journal holds it).
+    pub scene: Option<PathBuf>,
     pub world: String,
     pub network: Network,
     /// Start paused (step with commands).
@@ -85,6 +88,10 @@ pub struct HostOptions {
     pub max_rate: f64,
     /// Per-sender rates and queue bounds (the command size bound is `limits`').
     pub inbox: InboxLimits,
+    /// Journal every accepted command and stepped frame to this file ([`journal`]).
+    pub journal: Option<PathBuf>,
+    /// Rebuild the world from this journal, then go on appending to it.
+    pub resume: Option<PathBuf>,
 }
 
 /// The server's zenoh configuration: the network's, with the receive size bounded to what
@@ -139,6 +146,7 @@ fn apply_incoming(
     incoming: Incoming,
     answered: &mut Answered,
     deferred: &mut Vec<Deferred>,
+    journal: &mut Option<Journal>,
     inbox: &Inbox,
     outbox: &Outbox,
 ) {
@@ -175,6 +183,9 @@ fn apply_incoming(
                 pending = host.pending_steps,
                 "applied"
             );
+            if let (Some(journal), Ok(command)) = (journal.as_mut(), &parsed) {
+                journal.handled(command, &reply, &sender, &id, host);
+            }
             if !reply.ok {
                 tracing::debug!(
                     frame,
@@ -214,11 +225,39 @@ fn apply_incoming(
 
 /// Hosts a world until killed (or `max_frames`).
 pub fn run(opts: HostOptions) -> Result<()> {
+    let (mut host, mut answered, mut journal, opts) = match &opts.resume {
+        Some(path) => {
+            let resumed = journal::resume(path, &opts)?;
+            tracing::info!(
+                journal = %path.display(),
+                world = %resumed.world,
+                frame = resumed.host.world.frame(),
+                "resumed the world from its journal"
+            );
+            (
+                resumed.host,
+                resumed.answered,
+                Some(resumed.journal),
+                resumed.opts,
+            )
+        }
+        None => {
+            let scene = opts
+                .scene
+                .as_ref()
+                .ok_or_else(|| anyhow!("a scene, or a journal to resume, is needed"))?;
+            let text = std::fs::read_to_string(scene)
+                .with_context(|| format!("cannot read scene {}", scene.display()))?;
+            let host = Hosted::load(text, scene.clone(), &opts)?;
+            let journal = match &opts.journal {
+                Some(path) => Some(Journal::create(path, &opts.world, &host, &opts)?),
+                None => None,
+            };
+            (host, Answered::default(), journal, opts)
+        }
+    };
     let keys = WorldKeys::new(&opts.world).map_err(|e| anyhow!(e))?;
-    let text = std::fs::read_to_string(&opts.scene)
-        .with_context(|| format!("cannot read scene {}", opts.scene.display()))?;
-    let mut host = Hosted::load(text, opts.scene.clone(), &opts)?;
-    host.paused = opts.paused;
+    host.paused |= opts.paused;
 
     let mut dump = match &opts.dump {
         Some(path) => Some(std::io::BufWriter::new(
@@ -294,7 +333,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
         .map_err(z)?;
     tracing::info!(
         world = %opts.world,
-        scene = %opts.scene.display(),
+        scene = %host.scene_name.display(),
         mode = opts.network.mode_name(),
         listen = ?opts.network.listen,
         connect = ?opts.network.connect,
@@ -343,7 +382,6 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let mut last_dt = host.world.config.dt;
     let mut anchor = Instant::now();
     let mut due: u64 = 1; // steps since the anchor, the next one included
-    let mut answered = Answered::default();
     let mut deferred: Vec<Deferred> = Vec::new();
     // The state query's answer, kept for the frame it was made at.
     let mut state: Option<((u64, u64), Vec<u8>)> = None;
@@ -393,6 +431,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 incoming,
                 &mut answered,
                 &mut deferred,
+                &mut journal,
                 &inbox,
                 &outbox,
             );
@@ -410,6 +449,9 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 host.pending_steps -= 1;
                 host.steps_run += 1;
                 publish(&mut host);
+                if let Some(journal) = journal.as_mut() {
+                    journal.stepped(host.world.frame());
+                }
             }
         }
         if !deferred.is_empty() {
@@ -499,6 +541,9 @@ pub fn run(opts: HostOptions) -> Result<()> {
         }
         host.step();
         publish(&mut host);
+        if let Some(journal) = journal.as_mut() {
+            journal.stepped(host.world.frame());
+        }
         due += 1;
     }
 }

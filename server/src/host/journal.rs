@@ -1,0 +1,309 @@
+//! The journal: every accepted command, with the frame it took effect in, so a server
+//! killed at any moment can be resumed bit for bit (`run --journal FILE`, then
+//! `run --resume FILE`).
+//!
+//! A journal is JSON Lines. The first line is the header: the world's name, its scene
+//! (name and full text), the `[world]` overrides and the limits it ran under. Then, in the
+//! order they happened:
+//!
+//! - `{"frame": F, "command": {...}, "reply": {...}}`: a command applied at the boundary
+//!   after frame F (with `sender` and `id` when it had an id; a refused command is written
+//!   only when it had an id, so a retry after a resume gets the same answer);
+//! - `{"frame": F, "scene": {"name": ..., "text": ...}, "reply": {...}}`: a `load`, with the
+//!   scene's text, so a resume needs no file the server read;
+//! - `{"at": F}`: frame F was stepped (and published).
+//!
+//! Each line is flushed to the operating system as it is written: a killed process loses
+//! nothing written (a machine that loses power may lose what the OS had not yet stored).
+//! A resume replays the lines in order: the same scene, commands and steps give the same
+//! world, bit for bit, since the engine is deterministic; the resumed server then appends
+//! to the same journal.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, bail, Context, Result};
+use ricochet_engine::world::Limits;
+use ricochet_protocol::command::{Command, Reply};
+use serde::{Deserialize, Serialize};
+
+use super::answered::{Answer, Answered};
+use super::hosted::Hosted;
+use super::inbox::Sender;
+use super::HostOptions;
+
+/// The journal's format version.
+pub const VERSION: u32 = 1;
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Header {
+    journal: u32,
+    world: String,
+    scene: SceneText,
+    overrides: Vec<String>,
+    /// The limits as TOML (which, unlike JSON, spells an infinite work limit).
+    limits: String,
+}
+
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneText {
+    name: PathBuf,
+    text: String,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(untagged)]
+enum Line {
+    At {
+        at: u64,
+    },
+    Command {
+        frame: u64,
+        command: Command,
+        reply: Reply,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Scene {
+        frame: u64,
+        scene: SceneText,
+        reply: Reply,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+}
+
+/// An open journal, appended to.
+pub struct Journal {
+    out: BufWriter<File>,
+    path: PathBuf,
+}
+
+impl Journal {
+    /// Starts a journal at `path` (replacing any file there) for `host`'s world.
+    pub fn create(path: &Path, world: &str, host: &Hosted, opts: &HostOptions) -> Result<Journal> {
+        let file = File::create(path)
+            .with_context(|| format!("cannot create the journal {}", path.display()))?;
+        let mut journal = Journal {
+            out: BufWriter::new(file),
+            path: path.to_path_buf(),
+        };
+        let header = Header {
+            journal: VERSION,
+            world: world.to_string(),
+            scene: SceneText {
+                name: host.scene_name.clone(),
+                text: host.scene_text.clone(),
+            },
+            overrides: opts.overrides.clone(),
+            limits: toml::to_string(&opts.limits).expect("limits serialise"),
+        };
+        journal.write(&serde_json::to_string(&header).expect("headers serialise"))?;
+        Ok(journal)
+    }
+
+    fn write(&mut self, line: &str) -> Result<()> {
+        writeln!(self.out, "{line}")
+            .and_then(|()| self.out.flush())
+            .with_context(|| format!("cannot write the journal {}", self.path.display()))
+    }
+
+    fn line(&mut self, line: &Line) {
+        let text = serde_json::to_string(line).expect("journal lines serialise");
+        if let Err(e) = self.write(&text) {
+            tracing::error!("{e:#}");
+        }
+    }
+
+    /// Frame `frame` was stepped.
+    pub fn stepped(&mut self, frame: u64) {
+        self.line(&Line::At { at: frame });
+    }
+
+    /// A command was handled: written when it was applied, or when it had an id.
+    pub fn handled(
+        &mut self,
+        command: &Command,
+        reply: &Reply,
+        sender: &Sender,
+        id: &Option<String>,
+        host: &Hosted,
+    ) {
+        if !reply.ok && id.is_none() {
+            return;
+        }
+        let (sender, id) = (sender.clone(), id.clone());
+        let line = match command {
+            Command::Server(ricochet_protocol::command::ServerCommand::Load { .. }) if reply.ok => {
+                Line::Scene {
+                    frame: reply.frame,
+                    scene: SceneText {
+                        name: host.scene_name.clone(),
+                        text: host.scene_text.clone(),
+                    },
+                    reply: reply.clone(),
+                    sender,
+                    id,
+                }
+            }
+            _ => Line::Command {
+                frame: reply.frame,
+                command: command.clone(),
+                reply: reply.clone(),
+                sender,
+                id,
+            },
+        };
+        self.line(&line);
+    }
+}
+
+/// A world rebuilt from its journal.
+pub struct Resumed {
+    pub world: String,
+    pub host: Hosted,
+    pub answered: Answered,
+    pub journal: Journal,
+    /// The options the journal's header set (scene, overrides, limits).
+    pub opts: HostOptions,
+}
+
+/// Rebuilds the world `path` journals, to its last journaled frame, and opens the journal
+/// to go on appending. `opts` gives what the journal does not (network, rates, ...).
+pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
+    let mut text = String::new();
+    File::open(path)
+        .and_then(|f| BufReader::new(f).read_to_string(&mut text))
+        .with_context(|| format!("cannot read the journal {}", path.display()))?;
+    let at = |n: usize| format!("journal {} line {n}", path.display());
+    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
+    let (_, first) = lines.next().ok_or_else(|| anyhow!("{}: empty", at(1)))?;
+    let header: Header =
+        serde_json::from_str(first).with_context(|| format!("{}: not a journal header", at(1)))?;
+    if header.journal != VERSION {
+        bail!(
+            "{}: journal version {} (this server reads {VERSION})",
+            at(1),
+            header.journal
+        );
+    }
+    let limits: Limits =
+        toml::from_str(&header.limits).with_context(|| format!("{}: limits", at(1)))?;
+    let mut opts = opts.clone();
+    opts.overrides = header.overrides.clone();
+    opts.limits = limits;
+    opts.scene = Some(header.scene.name.clone());
+    opts.world = header.world.clone();
+    let mut host = Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
+        .with_context(|| format!("{}: the journal's scene", at(1)))?;
+    let mut answered = Answered::default();
+    let ends_cleanly = text.ends_with('\n');
+    let count = text.lines().count();
+    for (n, raw) in lines {
+        let line: Line = match serde_json::from_str(raw) {
+            Ok(line) => line,
+            // A last line cut short by the kill: what it held was not yet done.
+            Err(_) if n == count && !ends_cleanly => break,
+            Err(e) => bail!("{}: {e}", at(n)),
+        };
+        match line {
+            Line::At { at: frame } => {
+                host.step();
+                if host.pending_steps > 0 {
+                    host.pending_steps -= 1;
+                    host.steps_run += 1;
+                }
+                if host.world.frame() != frame {
+                    bail!(
+                        "{}: frame {frame} stepped, but the rebuilt world is at frame {}",
+                        at(n),
+                        host.world.frame()
+                    );
+                }
+            }
+            Line::Command {
+                frame,
+                command,
+                reply,
+                sender,
+                id,
+            } => {
+                let mut due_at_step = 0;
+                if reply.ok {
+                    check_frame(&host, frame, &at(n))?;
+                    let handled = host.handle(&command);
+                    if !handled.reply.ok {
+                        bail!(
+                            "{}: applied when journaled, refused now: {}",
+                            at(n),
+                            handled.reply.error.unwrap_or_default()
+                        );
+                    }
+                    due_at_step = handled.due_at_step;
+                }
+                if let Some(id) = id {
+                    answered.remember(sender, id, Answer { reply, due_at_step });
+                }
+            }
+            Line::Scene {
+                frame,
+                scene,
+                reply,
+                sender,
+                id,
+            } => {
+                check_frame(&host, frame, &at(n))?;
+                host.adopt_scene(scene.text, scene.name)
+                    .map_err(|e| anyhow!("{}: the loaded scene: {e}", at(n)))?;
+                if let Some(id) = id {
+                    answered.remember(
+                        sender,
+                        id,
+                        Answer {
+                            reply,
+                            due_at_step: 0,
+                        },
+                    );
+                }
+            }
+        }
+    }
+    // Go on appending, after a line cut short if there is one.
+    let file = OpenOptions::new()
+        .append(true)
+        .open(path)
+        .with_context(|| format!("cannot append to the journal {}", path.display()))?;
+    if !ends_cleanly {
+        // A line cut short is garbage in the middle of the journal once more is appended:
+        // cut it off.
+        let keep = text.rfind('\n').map_or(0, |i| i + 1) as u64;
+        file.set_len(keep)?;
+    }
+    Ok(Resumed {
+        world: header.world,
+        host,
+        answered,
+        journal: Journal {
+            out: BufWriter::new(file),
+            path: path.to_path_buf(),
+        },
+        opts,
+    })
+}
+
+fn check_frame(host: &Hosted, frame: u64, at: &str) -> Result<()> {
+    if host.world.frame() != frame {
+        bail!(
+            "{at}: a command of frame {frame}, but the rebuilt world is at frame {}",
+            host.world.frame()
+        );
+    }
+    Ok(())
+}

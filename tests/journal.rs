@@ -1,0 +1,140 @@
+//! A server killed mid-run (SIGKILL) is resumed from its journal bit for bit: the resumed
+//! world at the last journaled frame is the killed server's at that frame, and from there
+//! it steps to the frames a headless run of the same scene and the journal's commands
+//! gives. A retried request after the resume is answered, not applied again. Real
+//! processes on loopback; every wait is bounded.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command as Process;
+use std::time::Duration;
+
+use common::*;
+use ricochet_protocol::command::{Action, Command, ServerCommand, TimedAction};
+
+/// A dump's lines by frame (the last line may be cut short by a kill: skipped).
+fn dump_lines(path: &Path) -> BTreeMap<u64, String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .filter_map(|line| {
+            let value: serde_json::Value = serde_json::from_str(line).ok()?;
+            Some((value["frame"].as_u64()?, line.to_string()))
+        })
+        .collect()
+}
+
+#[test]
+fn a_killed_server_resumes_from_its_journal_bit_for_bit() {
+    let dir = temp_dir();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (journal, dump_a, dump_b) = (path("world.journal"), path("a.jsonl"), path("b.jsonl"));
+
+    // A runs in real time, journaled, while a client acts on it; then it is killed.
+    let a = Server::start(
+        "emitters.toml",
+        "phoenix",
+        &["--journal", &journal, "--dump", &dump_a],
+    );
+    let client = a.client();
+    for i in 0..8 {
+        let reply = request(
+            &client,
+            Command::World(Action::SpawnMinion {
+                at: [40.0 + 15.0 * i as f64, 80.0],
+                shape: None,
+            }),
+        );
+        assert!(reply.ok, "{reply:?}");
+        std::thread::sleep(Duration::from_millis(40));
+    }
+    let retried = br#"{"do":"agitate","strength":30,"id":"once"}"#.to_vec();
+    let first = client.request_raw(retried.clone(), TIMEOUT).unwrap();
+    assert!(first.ok, "{first:?}");
+    let set_gravity = br#"{"do":"set","name":"gravity","value":[5,-40]}"#.to_vec();
+    assert!(client.request_raw(set_gravity, TIMEOUT).unwrap().ok);
+    std::thread::sleep(Duration::from_millis(300));
+    let endpoint = a.endpoint.clone();
+    a.kill();
+
+    // What the journal holds: its last stepped frame, and its world commands as an input
+    // log for a headless run.
+    let text = std::fs::read_to_string(&journal).unwrap();
+    let mut last = 0;
+    let mut inputs = String::new();
+    for line in text.lines().skip(1) {
+        let Ok(value) = serde_json::from_str::<serde_json::Value>(line) else {
+            continue; // a last line cut short by the kill
+        };
+        if let Some(at) = value["at"].as_u64() {
+            last = at;
+        } else if value["reply"]["ok"] == true {
+            let command: Command = serde_json::from_value(value["command"].clone()).unwrap();
+            let Command::World(action) = command else {
+                panic!("only world commands were sent: {line}")
+            };
+            let timed = TimedAction {
+                frame: value["frame"].as_u64().unwrap(),
+                action,
+            };
+            inputs.push_str(&serde_json::to_string(&timed).unwrap());
+            inputs.push('\n');
+        }
+    }
+    assert!(last > 20, "A stepped for a while: {last} frames journaled");
+    // 8 spawns, agitate, set, and the deselects that asked whether A was up.
+    assert!(inputs.lines().count() >= 11, "{inputs}");
+    let killed = dump_lines(Path::new(&dump_a));
+
+    // B resumes the journal, paused, and steps on.
+    // On A's endpoint, so A's client reconnects to it: the same sender retries.
+    let _resumed = Server::launch_at(
+        &endpoint,
+        "phoenix",
+        &["--resume", &journal, "--paused", "--dump", &dump_b],
+    );
+    let again = client.request_raw(retried, TIMEOUT).unwrap();
+    assert_eq!(
+        again, first,
+        "the retry after the resume got the first answer"
+    );
+    let more = 120;
+    assert!(request(&client, Command::Server(ServerCommand::Step { n: more })).ok);
+    let resumed = dump_lines(Path::new(&dump_b));
+    assert_eq!(
+        resumed.keys().next(),
+        Some(&last),
+        "B starts at the last journaled frame"
+    );
+    assert_eq!(
+        resumed[&last], killed[&last],
+        "the resumed world is the killed one at frame {last}"
+    );
+
+    // The headless reference: the scene, the journal's commands, the same steps.
+    let inputs_file = path("inputs.jsonl");
+    std::fs::write(&inputs_file, inputs).unwrap();
+    let reference = path("reference.jsonl");
+    ok(&Process::new(bin("ricochet-server"))
+        .args(["simulate", "--scene", &scene("emitters.toml")])
+        .args(["--inputs", &inputs_file, "--dump", &reference, "--steps"])
+        .arg((last + u64::from(more)).to_string())
+        .output()
+        .unwrap());
+    let reference = dump_lines(Path::new(&reference));
+    for frame in 0..=last {
+        assert_eq!(
+            killed.get(&frame),
+            reference.get(&frame),
+            "A's frame {frame} is the headless run's"
+        );
+    }
+    for frame in last..=last + u64::from(more) {
+        assert_eq!(
+            resumed.get(&frame),
+            reference.get(&frame),
+            "the resumed frame {frame} is the headless run's"
+        );
+    }
+}
