@@ -395,3 +395,62 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
     );
     assert!(count(&collided, plots, plot) >= 100, "plots still drawn");
 }
+
+/// A viewer outlives its server: the server is killed mid-recording and another takes its
+/// place (another scene, on the same endpoint); the viewer says so, fetches the new
+/// server's statics and state, and goes on drawing until its frame count.
+#[test]
+fn a_viewer_survives_its_server_being_killed_and_replaced() {
+    let dir = temp_dir();
+    let first = Server::start("emitters.toml", "phoenix", &[]);
+    let endpoint = first.endpoint.clone();
+    let file = dir.path().join("restart.rrd");
+    let frames = 240u64;
+    let viewer = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "phoenix", "--connect", &endpoint, "--save"])
+        .arg(&file)
+        .args(["--frames", &frames.to_string(), "--wait", "20"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ricochet-viewer starts");
+    let mut viewer = Running(viewer);
+    std::thread::sleep(Duration::from_millis(1500));
+    first.kill();
+    std::thread::sleep(Duration::from_millis(500));
+    let _second = Server::launch_at(&endpoint, "phoenix", &["--scene", &scene("stack-20.toml")]);
+
+    let began = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            began.elapsed() < Duration::from_secs(60),
+            "the viewer did not reach {frames} frames"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(viewer.0.stderr.as_mut().unwrap(), &mut err).unwrap();
+    assert!(status.success(), "viewer failed: {err}");
+
+    let rrd = read_rrd(&file);
+    let entities = rrd["entities"].as_object().expect("entities");
+    assert!(
+        entities.contains_key("/world/statics/platforms"),
+        "the first scene's statics"
+    );
+    assert!(
+        entities.contains_key("/world/statics/ground"),
+        "the second scene's statics: {:?}",
+        entities.keys().collect::<Vec<_>>()
+    );
+    let log = rrd["events"].as_array().unwrap();
+    let text: Vec<&str> = log.iter().filter_map(Value::as_str).collect();
+    assert!(
+        text.iter().any(|t| t.contains("server changed")),
+        "{text:?}"
+    );
+}

@@ -15,7 +15,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
-use zenoh::handlers::{FifoChannelHandler, RingChannel, RingChannelHandler};
+use zenoh::handlers::{RingChannel, RingChannelHandler};
 use zenoh::pubsub::{Publisher, Subscriber};
 use zenoh::query::ConsolidationMode;
 use zenoh::sample::{Sample, SourceInfo};
@@ -25,10 +25,13 @@ use crate::command::{Command, Event, Reply};
 use crate::keys::{self, WorldKeys};
 use crate::net::Network;
 
-/// Frames as they arrive, all of them, in order (up to a large backlog).
-pub type FrameStream = Subscriber<FifoChannelHandler<Sample>>;
-/// Only the latest frames: a slow reader drops the oldest instead of stalling anything.
-pub type LatestFrames = Subscriber<RingChannelHandler<Sample>>;
+/// Samples as they arrive, in order, in a ring: a reader that falls more than the ring
+/// behind loses the oldest (a frame decoder then resyncs) instead of holding up zenoh's
+/// receive thread, and with it every reply this session waits for.
+pub type FrameStream = Subscriber<RingChannelHandler<Sample>>;
+
+/// Frames a client holds unread at most before the oldest are dropped.
+pub const FRAME_RING: usize = 4096;
 
 /// A client of one world.
 pub struct Client {
@@ -245,40 +248,32 @@ impl Client {
         ))
     }
 
-    /// Every frame from now on, in order.
+    /// Every frame from now on, in order, in a ring of [`FRAME_RING`].
     pub fn frames(&self) -> Result<FrameStream> {
-        self.session
-            .declare_subscriber(&self.keys.frame)
-            .with(zenoh::handlers::FifoChannel::new(4096))
-            .wait()
-            .map_err(|e| anyhow!("subscribe to frames: {e}"))
+        self.latest_frames(FRAME_RING)
     }
 
-    /// The latest `capacity` frames: for viewers, which must never hold the server back.
-    pub fn latest_frames(&self, capacity: usize) -> Result<LatestFrames> {
+    /// The latest `capacity` frames: for viewers, which must never hold anything back.
+    pub fn latest_frames(&self, capacity: usize) -> Result<FrameStream> {
+        self.subscribe(&self.keys.frame, capacity)
+    }
+
+    fn subscribe(&self, key: &str, capacity: usize) -> Result<FrameStream> {
         self.session
-            .declare_subscriber(&self.keys.frame)
+            .declare_subscriber(key.to_string())
             .with(RingChannel::new(capacity.max(1)))
             .wait()
-            .map_err(|e| anyhow!("subscribe to frames: {e}"))
+            .map_err(|e| anyhow!("subscribe to {key}: {e}"))
     }
 
     /// Statics snapshots re-published when static bodies change.
     pub fn snapshots(&self) -> Result<FrameStream> {
-        self.session
-            .declare_subscriber(&self.keys.snapshot)
-            .with(zenoh::handlers::FifoChannel::new(64))
-            .wait()
-            .map_err(|e| anyhow!("subscribe to snapshots: {e}"))
+        self.subscribe(&self.keys.snapshot, 64)
     }
 
     /// Events: one per command the server handled.
     pub fn events(&self) -> Result<FrameStream> {
-        self.session
-            .declare_subscriber(&self.keys.event)
-            .with(zenoh::handlers::FifoChannel::new(4096))
-            .wait()
-            .map_err(|e| anyhow!("subscribe to events: {e}"))
+        self.subscribe(&self.keys.event, 4096)
     }
 
     /// Fetches the statics snapshot (what a late joiner needs besides the frames).

@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{ArgGroup, Parser};
 use ricochet_protocol::client::{parse_event, Client};
-use ricochet_protocol::frame::DecodeError;
+use ricochet_protocol::frame::{DecodeError, FrameDecoder};
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, NetworkArgs};
 
@@ -161,6 +161,30 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(rerun::RecordingStrea
     Ok((rec, Served::Web))
 }
 
+/// How often the viewer checks that its statics are from the world's current server and
+/// scene.
+const SOURCE_CHECK: Duration = Duration::from_secs(2);
+
+/// The world's scene generation, if its server answers.
+fn info_generation(client: &Client) -> Option<u64> {
+    client
+        .info(Duration::from_secs(1))
+        .ok()
+        .map(|i| i.generation)
+}
+
+/// A decoder brought up to date from scratch: statics from the snapshot, then the state.
+fn rejoin(client: &Client) -> Result<FrameDecoder> {
+    let mut decoder = FrameDecoder::new();
+    decoder
+        .apply(&client.snapshot(Duration::from_secs(2))?)
+        .map_err(|e| anyhow!("snapshot: {e}"))?;
+    decoder
+        .apply(&client.state(Duration::from_secs(2))?)
+        .map_err(|e| anyhow!("state: {e}"))?;
+    Ok(decoder)
+}
+
 /// Asks for the world's info until its server answers or `wait` runs out.
 fn wait_for_world(
     client: &Client,
@@ -209,6 +233,16 @@ fn run(opts: Opts) -> Result<()> {
     let events = client.events()?;
     let snapshots = client.snapshots()?;
     let (frames, mut decoder) = client.join(Duration::from_secs(5))?;
+    // Which server, and which of its scenes, the statics came from: checked every few
+    // seconds, so a restarted server or a missed snapshot is caught up with.
+    let mut source = (
+        client.servers(Duration::from_secs(2))?,
+        info_generation(&client),
+    );
+    let mut last_check = Instant::now();
+    // A resync that failed (the server gone, say): retried at most once a second until a
+    // key frame or a resync brings the decoder back.
+    let mut lost_since: Option<Instant> = None;
     sink.log_statics(&decoder.statics)?;
     sink.log_stats(decoder.frame, decoder.time, &decoder.stats, 0)?;
     sink.draw(&decoder)?;
@@ -235,6 +269,40 @@ fn run(opts: Opts) -> Result<()> {
             match decoder.apply(&sample.payload().to_bytes()) {
                 Ok(_) => new_statics = true,
                 Err(e) => sink.log_note(&format!("unreadable snapshot: {e}"), "WARN")?,
+            }
+        }
+        if last_check.elapsed() >= SOURCE_CHECK {
+            last_check = Instant::now();
+            let now = (
+                client.servers(Duration::from_secs(1)).unwrap_or_default(),
+                info_generation(&client),
+            );
+            if !now.0.is_empty() && now.1.is_some() && now != source {
+                // A new server, or a new scene: the statics and state again, from scratch.
+                match rejoin(&client) {
+                    Ok(fresh) => {
+                        decoder = fresh;
+                        new_statics = true;
+                        lost_since = None;
+                        let what = if now.0 != source.0 {
+                            "the world's server changed (restarted?)"
+                        } else {
+                            "the world's scene was reloaded"
+                        };
+                        sink.log_note(
+                            &format!(
+                                "{what}: statics and state fetched again at frame {}",
+                                decoder.frame
+                            ),
+                            "WARN",
+                        )?;
+                        source = now;
+                    }
+                    Err(e) => sink.log_note(
+                        &format!("catching up with the server failed, will retry: {e:#}"),
+                        "WARN",
+                    )?,
+                }
             }
         }
         if new_statics {
@@ -266,15 +334,31 @@ fn run(opts: Opts) -> Result<()> {
                 }
                 Err(DecodeError::Stale { .. }) => {}
                 Err(DecodeError::OutOfSync { expected, got }) => {
+                    if lost_since.is_some_and(|t| t.elapsed() < Duration::from_secs(1)) {
+                        continue;
+                    }
                     resyncs += 1;
-                    let state = client.state(Duration::from_secs(2))?;
-                    decoder
-                        .apply(&state)
-                        .map_err(|e| anyhow!("the server's state is unreadable: {e}"))?;
-                    sink.log_note(
-                        &format!("frames {expected}..{got} lost on the way; resynced at frame {} (resync {resyncs})", decoder.frame),
-                        "WARN",
-                    )?;
+                    let resynced = client.state(Duration::from_secs(2)).and_then(|state| {
+                        decoder
+                            .apply(&state)
+                            .map_err(|e| anyhow!("the server's state is unreadable: {e}"))
+                    });
+                    match resynced {
+                        Ok(_) => {
+                            lost_since = None;
+                            sink.log_note(
+                                &format!("frames {expected}..{got} lost on the way; resynced at frame {} (resync {resyncs})", decoder.frame),
+                                "WARN",
+                            )?;
+                        }
+                        Err(e) => {
+                            lost_since = Some(Instant::now());
+                            sink.log_note(
+                                &format!("frames {expected}..{got} lost and the resync failed ({e:#}); waiting for the next key frame"),
+                                "WARN",
+                            )?;
+                        }
+                    }
                 }
                 Err(e) => sink.log_note(&format!("unreadable frame: {e}"), "WARN")?,
             }

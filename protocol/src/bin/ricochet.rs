@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand};
+use ricochet_engine::world::short;
 use ricochet_protocol::client::{list_worlds, parse_event, Client};
 use ricochet_protocol::command::{parse_input_log, Command, ServerCommand, TimedAction};
 use ricochet_protocol::frame::peek_header;
@@ -100,6 +101,10 @@ enum Cmd {
         resume: bool,
     },
 }
+
+/// Times `script` and `replay` send a request that got no answer (with the same id, so the
+/// server applies it once) before they stop and say where.
+const ATTEMPTS: u32 = 3;
 
 fn main() {
     init_tracing("warn");
@@ -257,7 +262,14 @@ fn script(
                 }
             }
         }
-        let reply = client.request(&command, timeout)?;
+        let reply = client
+            .request_retrying(&command, timeout, ATTEMPTS)
+            .with_context(|| {
+                format!(
+                    "line {line}: no answer to {} after {ATTEMPTS} attempts; the lines before it were applied, this one and those after it were not",
+                    short(&command.to_json(), 80)
+                )
+            })?;
         println!(
             "{}: {} -> {}",
             line,
@@ -404,7 +416,7 @@ fn replay(
     let log = parse_input_log(&text).map_err(|e| anyhow!("{}: {e}", file.display()))?;
     let client = Client::open(network, world)?;
     let ask = |command: Command| -> Result<()> {
-        let reply = client.request(&command, timeout)?;
+        let reply = client.request_retrying(&command, timeout, ATTEMPTS)?;
         if !reply.ok {
             bail!(
                 "{} refused: {}",
@@ -416,12 +428,22 @@ fn replay(
     };
     ask(Command::Server(ServerCommand::Reset { paused: true }))?;
     let mut frame = 0u64;
-    for entry in &log {
+    // Where a replay stopped, and the state it left the world in.
+    let stopped = |done: usize, frame: u64| {
+        format!(
+            "the replay stopped after {done} of {} commands: the world was reset and is paused at about frame {frame} \
+             (`ricochet send resume` runs it on; `ricochet replay` again starts over)",
+            log.len()
+        )
+    };
+    for (done, entry) in log.iter().enumerate() {
         if entry.frame > frame {
-            step(&client, entry.frame - frame, timeout)?;
+            step(&client, entry.frame - frame, timeout).with_context(|| stopped(done, frame))?;
             frame = entry.frame;
         }
-        let reply = client.request(&Command::World(entry.action.clone()), timeout)?;
+        let reply = client
+            .request_retrying(&Command::World(entry.action.clone()), timeout, ATTEMPTS)
+            .with_context(|| stopped(done, frame))?;
         if !reply.ok {
             eprintln!(
                 "frame {}: {} refused: {}",
@@ -433,12 +455,12 @@ fn replay(
     }
     if let Some(end) = until {
         if end > frame {
-            step(&client, end - frame, timeout)?;
+            step(&client, end - frame, timeout).with_context(|| stopped(log.len(), frame))?;
             frame = end;
         }
     }
     if resume {
-        ask(Command::Server(ServerCommand::Resume))?;
+        ask(Command::Server(ServerCommand::Resume)).with_context(|| stopped(log.len(), frame))?;
     }
     eprintln!(
         "replayed {} commands; the world is at frame {frame}{}",
@@ -452,7 +474,11 @@ fn replay(
 fn step(client: &Client, mut n: u64, timeout: Duration) -> Result<()> {
     while n > 0 {
         let chunk = n.min(600) as u32;
-        let reply = client.request(&Command::Server(ServerCommand::Step { n: chunk }), timeout)?;
+        let reply = client.request_retrying(
+            &Command::Server(ServerCommand::Step { n: chunk }),
+            timeout,
+            ATTEMPTS,
+        )?;
         if !reply.ok {
             bail!("step refused: {}", reply.error.unwrap_or_default());
         }
