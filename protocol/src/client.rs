@@ -121,11 +121,16 @@ impl Client {
         let bytes = body.to_string().into_bytes();
         let mut last = None;
         for attempt in 1..=attempts.max(1) {
+            let began = Instant::now();
             match self.request_raw(bytes.clone(), timeout) {
                 Ok(reply) => return Ok(reply),
                 Err(e) => {
                     if attempt < attempts {
                         tracing::warn!(attempt, id, "no answer, sending again: {e:#}");
+                        // A query nobody could take ends at once (the server is down, say):
+                        // back off before the next, up to the attempt's timeout.
+                        let backoff = Duration::from_millis(100 << (attempt - 1).min(6));
+                        std::thread::sleep(backoff.min(timeout.saturating_sub(began.elapsed())));
                     }
                     last = Some(e);
                 }

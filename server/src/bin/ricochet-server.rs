@@ -20,7 +20,7 @@ use ricochet_protocol::net::{init_tracing, Mode, NetworkArgs};
 use ricochet_protocol::world::{self as wire, write_frame};
 use ricochet_server::host::inbox::InboxLimits;
 use ricochet_server::host::{self, HostOptions};
-use ricochet_server::report::{self, bench, tradeoff};
+use ricochet_server::report::{self, bench, soak, tradeoff};
 
 #[derive(Parser)]
 #[command(
@@ -143,6 +143,41 @@ enum Command {
         /// Where to write the report.
         #[arg(long, default_value = "docs/tradeoff")]
         out: PathBuf,
+    },
+    /// Soak a real server on loopback and measure it (figures, not pass/fail).
+    ///
+    /// Starts `run` on the scene, journaled; client sessions send valid, invalid and
+    /// oversized commands at --rate in all and requests (retried with ids) that must all
+    /// be answered; a viewer stops reading frames for --stall-for seconds; at --kill-at
+    /// the server is killed (SIGKILL) and resumed from its journal. Prints a table; with
+    /// --out, writes it between the soak markers of FILE (docs/reliability.md). Use a
+    /// release build.
+    Soak {
+        #[arg(long, default_value = "assets/scenes/particles.toml")]
+        scene: PathBuf,
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        #[arg(long, default_value_t = 4)]
+        clients: usize,
+        /// Fire-and-forget commands a second, all clients together.
+        #[arg(long, default_value_t = 10_000.0)]
+        rate: f64,
+        /// Requests a second of each client (each waits for its answer).
+        #[arg(long, default_value_t = 20.0)]
+        requests: f64,
+        #[arg(long, default_value_t = 10.0)]
+        stall_at: f64,
+        #[arg(long, default_value_t = 10.0)]
+        stall_for: f64,
+        /// When to kill and resume the server, seconds into the run; never if absent.
+        #[arg(long)]
+        kill_at: Option<f64>,
+        /// Extra arguments of the server's `run`. Repeatable.
+        #[arg(long = "server-arg", value_name = "ARG", allow_hyphen_values = true)]
+        server_args: Vec<String>,
+        /// Write the table between the soak markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
     },
     /// Make the TLS certificates of a secured deployment (assets/zenoh/): a certificate
     /// authority and the router's certificate signed by it, as PEM files in DIR
@@ -324,6 +359,46 @@ fn main() -> Result<()> {
                 out.join("tradeoff.png").display(),
                 readme.display()
             );
+            Ok(())
+        }
+        Command::Soak {
+            scene,
+            seconds,
+            clients,
+            rate,
+            requests,
+            stall_at,
+            stall_for,
+            kill_at,
+            server_args,
+            out,
+        } => {
+            let opts = soak::SoakOptions {
+                scene,
+                seconds,
+                clients: clients.max(1),
+                rate,
+                requests,
+                stall_at,
+                stall_for,
+                kill_at,
+                server_args,
+            };
+            let report = soak::run(&opts)?;
+            let table = report.to_markdown(&opts);
+            println!("{table}");
+            if let Some(out) = out {
+                report::splice(
+                    &out,
+                    "soak",
+                    &format!(
+                        "Measured by `{}` on {}.\n\n{table}",
+                        soak::command_line(&opts, Some(&out)),
+                        report::machine()
+                    ),
+                )?;
+                eprintln!("wrote the table of {}", out.display());
+            }
             Ok(())
         }
         Command::Certs { out, hosts, days } => {

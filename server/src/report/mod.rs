@@ -3,9 +3,11 @@
 //!
 //! - [`bench`]: what a step costs, per case and setting;
 //! - [`tradeoff`]: what each solver setting costs and buys in accuracy;
+//! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
 //! - [`splice`]: how a run writes its table into a hand-written page.
 
 pub mod bench;
+pub mod soak;
 pub mod tradeoff;
 
 use std::path::Path;
