@@ -18,6 +18,7 @@ import json
 import struct
 import sys
 import time
+import uuid
 
 POS_QUANTUM = 1.0 / 1024.0
 VEL_QUANTUM = 1.0 / 256.0
@@ -236,12 +237,27 @@ def server_replies(session, world, key, timeout, payload=None):
                   f"hold the world's token", file=sys.stderr)
 
 
-def request(session, world, command, timeout):
-    payload = command if isinstance(command, (bytes, bytearray)) else json.dumps(command).encode()
-    for reply in server_replies(session, world, f"ricochet/{world}/rpc", timeout, payload):
-        sample = reply.ok if reply.ok is not None else reply.err
-        return json.loads(sample.payload.to_bytes())
-    raise TimeoutError(f"no reply from the server of world {world!r} within {timeout} s: is it up?")
+def request(session, world, command, timeout, attempts=3):
+    """Sends a command and returns the reply. A command (a dict) gets a random request id,
+    so it is sent again, up to `attempts` times, while no answer comes: the server
+    applies it once and answers every copy. Raw bytes are sent once, as they are."""
+    if isinstance(command, (bytes, bytearray)):
+        payload, attempts = bytes(command), 1
+    else:
+        command = dict(command)
+        command.setdefault("id", uuid.uuid4().hex)
+        payload = json.dumps(command).encode()
+    for attempt in range(1, attempts + 1):
+        began = time.monotonic()
+        for reply in server_replies(session, world, f"ricochet/{world}/rpc", timeout, payload):
+            sample = reply.ok if reply.ok is not None else reply.err
+            return json.loads(sample.payload.to_bytes())
+        if attempt < attempts:
+            print(f"no answer from the server of world {world!r}, sending again", file=sys.stderr)
+            # A query nobody could take ends at once: back off before the next.
+            time.sleep(min(0.1 * 2 ** (attempt - 1), max(0.0, timeout - (time.monotonic() - began))))
+    raise TimeoutError(f"no reply from the server of world {world!r} after {attempts} attempt(s) "
+                       f"of {timeout} s: is it up?")
 
 
 def fetch(session, world, key, timeout):
