@@ -76,10 +76,10 @@ fn a_flood_of_commands_starves_neither_requests_nor_the_clock() {
                 && sent < 60_000
                 && began.elapsed() < Duration::from_secs(20)
             {
-                let command = if sent % 3 == 0 {
-                    br#"{"do":"no_such_command"}"#.to_vec()
-                } else {
-                    br#"{"do":"deselect"}"#.to_vec()
+                // One in three unknown, the rest valid.
+                let command = match sent % 3 {
+                    0 => br#"{"do":"no_such_command"}"#.to_vec(),
+                    _ => br#"{"do":"deselect"}"#.to_vec(),
                 };
                 flooder.send_raw(command).unwrap();
                 sent += 1;

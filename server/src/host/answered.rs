@@ -8,6 +8,8 @@
 //! are the client's to make unique (Ricochet's clients use 128 random bits).
 
 use std::collections::{HashMap, VecDeque};
+use std::hash::{BuildHasher, Hash};
+use std::time::{Duration, Instant};
 
 use ricochet_protocol::command::Reply;
 
@@ -16,38 +18,84 @@ use super::inbox::Sender;
 /// Ids remembered at most (the oldest are forgotten first).
 pub const REMEMBERED: usize = 16_384;
 
-type Key = (Sender, String);
+/// How long an id is remembered: a client retries within seconds (its timeout and
+/// back-off; a resumed server remembers the journal's ids from when it resumed).
+pub const REMEMBER_FOR: Duration = Duration::from_secs(30);
 
-/// A remembered answer.
+/// A sender's claimed zenoh id, hashed (the claim is the sender's own, so a collision
+/// gives nothing a peer could not get by claiming another's id), and the request id.
+type Key = (u64, Box<str>);
+
+/// A remembered answer: the reply as sent (JSON), compact.
 #[derive(Clone, Debug)]
 pub struct Answer {
-    pub reply: Reply,
+    pub reply: Box<[u8]>,
     /// Due once the host's `steps_run` reaches this (a `step`); at once if 0.
     pub due_at_step: u64,
 }
 
-#[derive(Default)]
+impl Answer {
+    pub fn new(reply: &Reply, due_at_step: u64) -> Answer {
+        Answer {
+            reply: serde_json::to_vec(reply)
+                .expect("replies serialise")
+                .into_boxed_slice(),
+            due_at_step,
+        }
+    }
+}
+
 pub struct Answered {
-    answers: HashMap<Key, Answer>,
-    order: VecDeque<Key>,
+    answers: HashMap<Key, Answer, rustc_hash::FxBuildHasher>,
+    /// Keys in the order remembered, with when.
+    order: VecDeque<(Key, Instant)>,
+    senders: rustc_hash::FxBuildHasher,
+}
+
+impl Default for Answered {
+    fn default() -> Self {
+        Answered {
+            answers: HashMap::default(),
+            order: VecDeque::new(),
+            senders: rustc_hash::FxBuildHasher,
+        }
+    }
 }
 
 impl Answered {
-    /// The answer given to `id` from `sender`, if it is remembered.
-    pub fn get(&self, sender: &Sender, id: &str) -> Option<&Answer> {
-        self.answers.get(&(sender.clone(), id.to_string()))
+    fn key(&self, sender: &Sender, id: &str) -> Key {
+        let mut h = self.senders.build_hasher();
+        sender.hash(&mut h);
+        (std::hash::Hasher::finish(&h), id.into())
     }
 
-    /// Remembers the answer to `id` from `sender`, forgetting the oldest past the bound.
+    /// The answer given to `id` from `sender`, if it is remembered.
+    pub fn get(&self, sender: &Sender, id: &str) -> Option<&Answer> {
+        self.answers.get(&self.key(sender, id))
+    }
+
+    /// Remembers the answer to `id` from `sender`, forgetting what is older than
+    /// [`REMEMBER_FOR`] or past [`REMEMBERED`].
     pub fn remember(&mut self, sender: Sender, id: String, answer: Answer) {
-        let key = (sender, id);
+        self.remember_at(sender, id, answer, Instant::now());
+    }
+
+    fn remember_at(&mut self, sender: Sender, id: String, answer: Answer, now: Instant) {
+        let key = self.key(&sender, &id);
         if self.answers.insert(key.clone(), answer).is_none() {
-            self.order.push_back(key);
+            self.order.push_back((key, now));
         }
-        while self.order.len() > REMEMBERED {
-            if let Some(old) = self.order.pop_front() {
-                self.answers.remove(&old);
+        while let Some((old, at)) = self.order.front() {
+            if self.order.len() <= REMEMBERED && now.duration_since(*at) < REMEMBER_FOR {
+                break;
             }
+            self.answers.remove(old);
+            self.order.pop_front();
+        }
+        if self.answers.capacity() > 4 * self.answers.len().max(1024) {
+            // After a burst: give the memory back.
+            self.answers.shrink_to_fit();
+            self.order.shrink_to_fit();
         }
     }
 
@@ -65,10 +113,11 @@ mod tests {
     use super::*;
 
     fn answer(frame: u64) -> Answer {
-        Answer {
-            reply: Reply::refused(frame, "x"),
-            due_at_step: 0,
-        }
+        Answer::new(&Reply::refused(frame, "x"), 0)
+    }
+
+    fn frame(a: &Answer) -> u64 {
+        serde_json::from_slice::<Reply>(&a.reply).unwrap().frame
     }
 
     #[test]
@@ -76,8 +125,8 @@ mod tests {
         let mut a = Answered::default();
         a.remember(Some("s1".into()), "r".into(), answer(1));
         a.remember(Some("s2".into()), "r".into(), answer(2));
-        assert_eq!(a.get(&Some("s1".into()), "r").unwrap().reply.frame, 1);
-        assert_eq!(a.get(&Some("s2".into()), "r").unwrap().reply.frame, 2);
+        assert_eq!(frame(a.get(&Some("s1".into()), "r").unwrap()), 1);
+        assert_eq!(frame(a.get(&Some("s2".into()), "r").unwrap()), 2);
         assert!(a.get(&None, "r").is_none());
         for i in 0..REMEMBERED {
             a.remember(None, i.to_string(), answer(3));
@@ -88,5 +137,21 @@ mod tests {
             "the oldest is forgotten"
         );
         assert!(a.get(&None, "0").is_some());
+    }
+
+    #[test]
+    fn ids_are_forgotten_after_a_while() {
+        let mut a = Answered::default();
+        let t0 = Instant::now();
+        a.remember_at(None, "old".into(), answer(1), t0);
+        a.remember_at(None, "new".into(), answer(2), t0 + REMEMBER_FOR / 2);
+        assert_eq!(a.len(), 2);
+        a.remember_at(None, "newer".into(), answer(3), t0 + REMEMBER_FOR);
+        assert!(
+            a.get(&None, "old").is_none(),
+            "forgotten after REMEMBER_FOR"
+        );
+        assert!(a.get(&None, "new").is_some());
+        assert_eq!(a.len(), 2);
     }
 }

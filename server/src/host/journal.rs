@@ -249,7 +249,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                     due_at_step = handled.due_at_step;
                 }
                 if let Some(id) = id {
-                    answered.remember(sender, id, Answer { reply, due_at_step });
+                    answered.remember(sender, id, Answer::new(&reply, due_at_step));
                 }
             }
             Line::Scene {
@@ -263,18 +263,13 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                 host.adopt_scene(scene.text, scene.name)
                     .map_err(|e| anyhow!("{}: the loaded scene: {e}", at(n)))?;
                 if let Some(id) = id {
-                    answered.remember(
-                        sender,
-                        id,
-                        Answer {
-                            reply,
-                            due_at_step: 0,
-                        },
-                    );
+                    answered.remember(sender, id, Answer::new(&reply, 0));
                 }
             }
         }
     }
+    // What the server counts from here is what it does live, not the replay.
+    host.health = Default::default();
     // Go on appending, after a line cut short if there is one.
     let file = OpenOptions::new()
         .append(true)

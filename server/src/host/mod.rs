@@ -136,7 +136,7 @@ fn health(host: &Hosted, inbox: &Inbox, outbox: &Outbox) -> Health {
 struct Deferred {
     due_at_step: u64,
     query: Query,
-    reply: Reply,
+    reply: Box<[u8]>,
 }
 
 /// Applies one command or request at the frame boundary: a retried id gets its first
@@ -200,7 +200,7 @@ fn apply_incoming(
                 ids: reply.ids.clone(),
                 error: reply.error.clone(),
             });
-            let answer = Answer { reply, due_at_step };
+            let answer = Answer::new(&reply, due_at_step);
             if let Some(id) = id {
                 answered.remember(sender, id, answer.clone());
             }
@@ -215,10 +215,7 @@ fn apply_incoming(
                 reply: answer.reply,
             });
         } else {
-            outbox.reply(
-                query,
-                serde_json::to_vec(&answer.reply).expect("replies serialise"),
-            );
+            outbox.reply(query, answer.reply.into_vec());
         }
     }
 }
@@ -460,10 +457,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 .partition(|d| d.due_at_step <= host.steps_run);
             deferred = waiting;
             for d in ready {
-                outbox.reply(
-                    d.query,
-                    serde_json::to_vec(&d.reply).expect("replies serialise"),
-                );
+                outbox.reply(d.query, d.reply.into_vec());
             }
         }
 

@@ -72,10 +72,12 @@ pub struct SoakReport {
     pub requests_answered: u64,
     pub requests_missed: u64,
     pub accepted_not_journaled: u64,
+    /// The journal's size at the end, MiB.
+    pub journal_mib: f64,
     /// The server's counts, before the kill and after the resume added.
     pub health: Health,
-    /// Resident memory of the server, MiB: (at start, peak, at end) of each process.
-    pub rss: Vec<(f64, f64, f64)>,
+    /// Resident memory of each server process.
+    pub rss: Vec<Memory>,
 }
 
 fn free_endpoint() -> Result<String> {
@@ -98,10 +100,23 @@ fn rss_mib(pid: u32) -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// Resident memory of a server process, MiB, sampled every 100 ms from when it first
+/// answered.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Memory {
+    pub start: f64,
+    /// [`WARM_UP`] after the start, if it lived that long: what its buffers settle at.
+    pub warm: Option<f64>,
+    pub peak: f64,
+    pub end: f64,
+}
+
+/// When a server's memory counts as warmed up.
+pub const WARM_UP: Duration = Duration::from_secs(10);
+
 struct ServerProcess {
     child: Child,
-    /// Resident memory samples: start, peak, last.
-    rss: Arc<Mutex<(f64, f64, f64)>>,
+    rss: Arc<Mutex<(Memory, Option<Instant>)>>,
     sampling: Arc<AtomicBool>,
 }
 
@@ -126,15 +141,20 @@ impl ServerProcess {
             .spawn()
             .context("start the server")?;
         let pid = child.id();
-        let rss = Arc::new(Mutex::new((0.0f64, 0.0f64, 0.0f64)));
+        let rss = Arc::new(Mutex::new((Memory::default(), None::<Instant>)));
         let sampling = Arc::new(AtomicBool::new(true));
         let (samples, on) = (rss.clone(), sampling.clone());
         std::thread::spawn(move || {
             while on.load(Ordering::Relaxed) {
                 if let Some(mib) = rss_mib(pid) {
                     let mut s = samples.lock().unwrap();
-                    s.1 = s.1.max(mib);
-                    s.2 = mib;
+                    if let Some(since) = s.1 {
+                        s.0.peak = s.0.peak.max(mib);
+                        s.0.end = mib;
+                        if s.0.warm.is_none() && since.elapsed() >= WARM_UP {
+                            s.0.warm = Some(mib);
+                        }
+                    }
                 }
                 std::thread::sleep(Duration::from_millis(100));
             }
@@ -150,13 +170,21 @@ impl ServerProcess {
     fn mark_start(&self) {
         if let Some(mib) = rss_mib(self.child.id()) {
             let mut s = self.rss.lock().unwrap();
-            *s = (mib, mib, mib);
+            *s = (
+                Memory {
+                    start: mib,
+                    warm: None,
+                    peak: mib,
+                    end: mib,
+                },
+                Some(Instant::now()),
+            );
         }
     }
 
     /// Kills the server (SIGKILL) and gives its memory figures.
-    fn stop(self) -> (f64, f64, f64) {
-        let rss = *self.rss.lock().unwrap();
+    fn stop(self) -> Memory {
+        let rss = self.rss.lock().unwrap().0;
         drop(self);
         rss
     }
@@ -361,7 +389,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
                     at: [100.0, 60.0],
                     count: 5,
                 });
-                match asker.request_retrying(&command, Duration::from_secs(2), 5) {
+                match asker.request_retrying(&command, Duration::from_secs(2), 10) {
                     Ok(reply) => {
                         answered.fetch_add(1, Ordering::Relaxed);
                         if let (true, Some(id)) = (reply.ok, reply.id) {
@@ -423,6 +451,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     // already counted before the kill.
     let frames = last_frame.load(Ordering::Relaxed) - first_frame;
     let journal_text = std::fs::read_to_string(&journal)?;
+    let journal_mib = journal_text.len() as f64 / (1024.0 * 1024.0);
     let journaled: std::collections::HashSet<(String, String)> = journal_text
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
@@ -461,6 +490,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
         requests_answered: answered.load(Ordering::Relaxed),
         requests_missed: missed.load(Ordering::Relaxed),
         accepted_not_journaled,
+        journal_mib,
         health: add(&before_kill, &after),
         rss,
     })
@@ -538,6 +568,7 @@ impl SoakReport {
                 "accepted requests not in the journal",
                 self.accepted_not_journaled.to_string(),
             ),
+            ("journal at the end", format!("{:.1} MiB", self.journal_mib)),
             (
                 "replies and events unsent (slow peers)",
                 h.unsent.to_string(),
@@ -547,7 +578,7 @@ impl SoakReport {
         for (k, v) in rows {
             let _ = writeln!(s, "| {k} | {v} |");
         }
-        for (i, (start, peak, end)) in self.rss.iter().enumerate() {
+        for (i, m) in self.rss.iter().enumerate() {
             let which = if i == 0 && self.rss.len() > 1 {
                 "killed server"
             } else if i > 0 {
@@ -555,10 +586,23 @@ impl SoakReport {
             } else {
                 "server"
             };
+            let warm = m
+                .warm
+                .map(|w| {
+                    format!(
+                        ", {w:.1} after {} s ({:+.1}% from then to the end)",
+                        WARM_UP.as_secs(),
+                        (m.end / w - 1.0) * 100.0
+                    )
+                })
+                .unwrap_or_default();
             let _ = writeln!(
                 s,
-                "| resident memory, {which} | {start:.1} MiB at start, {peak:.1} peak, {end:.1} at end ({:+.1}% end against start) |",
-                (end / start - 1.0) * 100.0
+                "| resident memory, {which} | {:.1} MiB at start{warm}, {:.1} peak, {:.1} at end ({:+.1}% against the start) |",
+                m.start,
+                m.peak,
+                m.end,
+                (m.end / m.start - 1.0) * 100.0
             );
         }
         s
