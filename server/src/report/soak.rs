@@ -87,21 +87,26 @@ fn free_endpoint() -> Result<String> {
     Ok(format!("tcp/127.0.0.1:{port}"))
 }
 
-/// The resident set of process `pid`, MiB (Linux).
-fn rss_mib(pid: u32) -> Option<f64> {
+/// Process `pid`'s resident memory, MiB (Linux): (anonymous, all). Anonymous memory is
+/// what the process allocated (heap, stacks, buffers); the rest is mostly its executable's
+/// code, paged in from the file as code paths first run, shared and reclaimable.
+fn rss_mib(pid: u32) -> Option<(f64, f64)> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let kib: f64 = status
-        .lines()
-        .find(|l| l.starts_with("VmRSS:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()?;
-    Some(kib / 1024.0)
+    let field = |name: &str| -> Option<f64> {
+        let kib: f64 = status
+            .lines()
+            .find(|l| l.starts_with(name))?
+            .split_whitespace()
+            .nth(1)?
+            .parse()
+            .ok()?;
+        Some(kib / 1024.0)
+    };
+    Some((field("RssAnon:")?, field("VmRSS:")?))
 }
 
-/// Resident memory of a server process, MiB, sampled every 100 ms from when it first
-/// answered.
+/// Resident anonymous memory of a server process (what it allocated), MiB, sampled every
+/// 100 ms from when it first answered; and its whole resident set at start and end.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Memory {
     pub start: f64,
@@ -109,7 +114,15 @@ pub struct Memory {
     pub warm: Option<f64>,
     pub peak: f64,
     pub end: f64,
+    pub total_start: f64,
+    pub total_end: f64,
+    /// Anonymous memory [`IDLE_AFTER`] after the load ended (the server that lived to the
+    /// end only).
+    pub idle: Option<f64>,
 }
+
+/// How long the server idles after the load before its memory is taken again.
+pub const IDLE_AFTER: Duration = Duration::from_secs(5);
 
 /// When a server's memory counts as warmed up.
 pub const WARM_UP: Duration = Duration::from_secs(10);
@@ -146,11 +159,12 @@ impl ServerProcess {
         let (samples, on) = (rss.clone(), sampling.clone());
         std::thread::spawn(move || {
             while on.load(Ordering::Relaxed) {
-                if let Some(mib) = rss_mib(pid) {
+                if let Some((mib, total)) = rss_mib(pid) {
                     let mut s = samples.lock().unwrap();
                     if let Some(since) = s.1 {
                         s.0.peak = s.0.peak.max(mib);
                         s.0.end = mib;
+                        s.0.total_end = total;
                         if s.0.warm.is_none() && since.elapsed() >= WARM_UP {
                             s.0.warm = Some(mib);
                         }
@@ -168,7 +182,7 @@ impl ServerProcess {
 
     /// Takes the memory now as the start: the server is up, its world loaded.
     fn mark_start(&self) {
-        if let Some(mib) = rss_mib(self.child.id()) {
+        if let Some((mib, total)) = rss_mib(self.child.id()) {
             let mut s = self.rss.lock().unwrap();
             *s = (
                 Memory {
@@ -176,9 +190,19 @@ impl ServerProcess {
                     warm: None,
                     peak: mib,
                     end: mib,
+                    total_start: total,
+                    total_end: total,
+                    idle: None,
                 },
                 Some(Instant::now()),
             );
+        }
+    }
+
+    /// Takes the memory now as the idle figure.
+    fn mark_idle(&self) {
+        if let Some((mib, _)) = rss_mib(self.child.id()) {
+            self.rss.lock().unwrap().0.idle = Some(mib);
         }
     }
 
@@ -308,7 +332,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     let stall_from = began + Duration::from_secs_f64(opts.stall_at);
     let stall_until = stall_from + Duration::from_secs_f64(opts.stall_for);
     let stalled = Client::open(&network, world)?;
-    let _stalled_frames = stalled
+    let stalled_frames = stalled
         .session()
         .declare_subscriber(stalled.keys().frame.clone())
         .callback(move |_| {
@@ -446,10 +470,13 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     let elapsed = began.elapsed().as_secs_f64();
     let frame = last_frame.load(Ordering::Relaxed);
     rates.push((frame - up_from.0) as f64 / up_from.1.elapsed().as_secs_f64());
+    let frames = frame - first_frame;
     let after = health(&watcher)?;
-    // The resumed process counts the frames it replayed as stepped: they are the world's,
-    // already counted before the kill.
-    let frames = last_frame.load(Ordering::Relaxed) - first_frame;
+    // The load gone (the clients' sessions closed with their threads), the server idles.
+    drop(stalled_frames);
+    drop(stalled);
+    std::thread::sleep(IDLE_AFTER);
+    server.mark_idle();
     let journal_text = std::fs::read_to_string(&journal)?;
     let journal_mib = journal_text.len() as f64 / (1024.0 * 1024.0);
     let journaled: std::collections::HashSet<(String, String)> = journal_text
@@ -590,7 +617,7 @@ impl SoakReport {
                 .warm
                 .map(|w| {
                     format!(
-                        ", {w:.1} after {} s ({:+.1}% from then to the end)",
+                        ", {w:.2} after {} s ({:+.1}% from then to the end)",
                         WARM_UP.as_secs(),
                         (m.end / w - 1.0) * 100.0
                     )
@@ -598,11 +625,24 @@ impl SoakReport {
                 .unwrap_or_default();
             let _ = writeln!(
                 s,
-                "| resident memory, {which} | {:.1} MiB at start{warm}, {:.1} peak, {:.1} at end ({:+.1}% against the start) |",
+                "| allocated memory (resident, anonymous), {which} | {:.2} MiB at start{warm}, {:.2} peak, {:.2} at end ({:+.1}% against the start) |",
                 m.start,
                 m.peak,
                 m.end,
                 (m.end / m.start - 1.0) * 100.0
+            );
+            if let Some(idle) = m.idle {
+                let _ = writeln!(
+                    s,
+                    "| allocated memory {} s after the load ended, {which} | {idle:.2} MiB ({:+.1}% against the start) |",
+                    IDLE_AFTER.as_secs(),
+                    (idle / m.start - 1.0) * 100.0
+                );
+            }
+            let _ = writeln!(
+                s,
+                "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end |",
+                m.total_start, m.total_end
             );
         }
         s
