@@ -85,6 +85,18 @@ impl Answered {
         if self.answers.insert(key.clone(), answer).is_none() {
             self.order.push_back((key, now));
         }
+        self.forget_at(now);
+    }
+
+    /// Forgets what is older than [`REMEMBER_FOR`] or past [`REMEMBERED`] (cheap when
+    /// there is nothing to forget: the host calls it every pass).
+    pub fn forget(&mut self) {
+        if !self.order.is_empty() {
+            self.forget_at(Instant::now());
+        }
+    }
+
+    fn forget_at(&mut self, now: Instant) {
         while let Some((old, at)) = self.order.front() {
             if self.order.len() <= REMEMBERED && now.duration_since(*at) < REMEMBER_FOR {
                 break;
@@ -92,7 +104,7 @@ impl Answered {
             self.answers.remove(old);
             self.order.pop_front();
         }
-        if self.answers.capacity() > 4 * self.answers.len().max(1024) {
+        if self.answers.capacity() > 4 * self.answers.len().max(256) {
             // After a burst: give the memory back.
             self.answers.shrink_to_fit();
             self.order.shrink_to_fit();

@@ -121,8 +121,10 @@ pub struct Memory {
     pub idle: Option<f64>,
 }
 
-/// How long the server idles after the load before its memory is taken again.
-pub const IDLE_AFTER: Duration = Duration::from_secs(5);
+/// How long the server idles after the load before its memory is taken again: past the
+/// time it remembers request ids, and a memory trim (every 10 s).
+pub const IDLE_AFTER: Duration =
+    Duration::from_secs(crate::host::answered::REMEMBER_FOR.as_secs() + 12);
 
 /// When a server's memory counts as warmed up.
 pub const WARM_UP: Duration = Duration::from_secs(10);
