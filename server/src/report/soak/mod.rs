@@ -11,14 +11,20 @@
 //!
 //! This measures; it asserts nothing. Use a release build.
 
-use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command as Process, Stdio};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+mod process;
+mod table;
+
+pub use process::{Memory, IDLE_AFTER, WARM_UP};
+pub use table::command_line;
+
+use process::ServerProcess;
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, Result};
 use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, Direction, Health};
 use ricochet_protocol::frame::peek_header;
@@ -85,135 +91,6 @@ fn free_endpoint() -> Result<String> {
         .local_addr()?
         .port();
     Ok(format!("tcp/127.0.0.1:{port}"))
-}
-
-/// Process `pid`'s resident memory, MiB (Linux): (anonymous, all). Anonymous memory is
-/// what the process allocated (heap, stacks, buffers); the rest is mostly its executable's
-/// code, paged in from the file as code paths first run, shared and reclaimable.
-fn rss_mib(pid: u32) -> Option<(f64, f64)> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let field = |name: &str| -> Option<f64> {
-        let kib: f64 = status
-            .lines()
-            .find(|l| l.starts_with(name))?
-            .split_whitespace()
-            .nth(1)?
-            .parse()
-            .ok()?;
-        Some(kib / 1024.0)
-    };
-    Some((field("RssAnon:")?, field("VmRSS:")?))
-}
-
-/// Resident anonymous memory of a server process (what it allocated), MiB, sampled every
-/// 100 ms from when it first answered; and its whole resident set at start and end.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Memory {
-    pub start: f64,
-    /// [`WARM_UP`] after the start, if it lived that long: what its buffers settle at.
-    pub warm: Option<f64>,
-    pub peak: f64,
-    pub end: f64,
-    pub total_start: f64,
-    pub total_end: f64,
-    /// Anonymous memory [`IDLE_AFTER`] after the load ended (the server that lived to the
-    /// end only).
-    pub idle: Option<f64>,
-}
-
-/// How long the server idles after the load before its memory is taken again: past the
-/// time it remembers request ids, and a memory trim (every 10 s).
-pub const IDLE_AFTER: Duration =
-    Duration::from_secs(crate::host::answered::REMEMBER_FOR.as_secs() + 12);
-
-/// When a server's memory counts as warmed up.
-pub const WARM_UP: Duration = Duration::from_secs(10);
-
-struct ServerProcess {
-    child: Child,
-    rss: Arc<Mutex<(Memory, Option<Instant>)>>,
-    sampling: Arc<AtomicBool>,
-}
-
-impl Drop for ServerProcess {
-    fn drop(&mut self) {
-        self.sampling.store(false, Ordering::Relaxed);
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-impl ServerProcess {
-    fn start(args: &[String]) -> Result<ServerProcess> {
-        let child = Process::new(std::env::current_exe()?)
-            .arg("run")
-            .args(args)
-            .env(
-                "RUST_LOG",
-                std::env::var("RUST_LOG").unwrap_or_else(|_| "warn".into()),
-            )
-            .stdout(Stdio::null())
-            .spawn()
-            .context("start the server")?;
-        let pid = child.id();
-        let rss = Arc::new(Mutex::new((Memory::default(), None::<Instant>)));
-        let sampling = Arc::new(AtomicBool::new(true));
-        let (samples, on) = (rss.clone(), sampling.clone());
-        std::thread::spawn(move || {
-            while on.load(Ordering::Relaxed) {
-                if let Some((mib, total)) = rss_mib(pid) {
-                    let mut s = samples.lock().unwrap();
-                    if let Some(since) = s.1 {
-                        s.0.peak = s.0.peak.max(mib);
-                        s.0.end = mib;
-                        s.0.total_end = total;
-                        if s.0.warm.is_none() && since.elapsed() >= WARM_UP {
-                            s.0.warm = Some(mib);
-                        }
-                    }
-                }
-                std::thread::sleep(Duration::from_millis(100));
-            }
-        });
-        Ok(ServerProcess {
-            child,
-            rss,
-            sampling,
-        })
-    }
-
-    /// Takes the memory now as the start: the server is up, its world loaded.
-    fn mark_start(&self) {
-        if let Some((mib, total)) = rss_mib(self.child.id()) {
-            let mut s = self.rss.lock().unwrap();
-            *s = (
-                Memory {
-                    start: mib,
-                    warm: None,
-                    peak: mib,
-                    end: mib,
-                    total_start: total,
-                    total_end: total,
-                    idle: None,
-                },
-                Some(Instant::now()),
-            );
-        }
-    }
-
-    /// Takes the memory now as the idle figure.
-    fn mark_idle(&self) {
-        if let Some((mib, _)) = rss_mib(self.child.id()) {
-            self.rss.lock().unwrap().0.idle = Some(mib);
-        }
-    }
-
-    /// Kills the server (SIGKILL) and gives its memory figures.
-    fn stop(self) -> Memory {
-        let rss = self.rss.lock().unwrap().0;
-        drop(self);
-        rss
-    }
 }
 
 fn wait_answered(client: &Client, limit: Duration) -> Result<Duration> {
@@ -523,145 +400,4 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
         health: add(&before_kill, &after),
         rss,
     })
-}
-
-impl SoakReport {
-    /// The report as a Markdown table.
-    pub fn to_markdown(&self, opts: &SoakOptions) -> String {
-        let mut s = String::new();
-        let h = &self.health;
-        let rows: Vec<(&str, String)> = vec![
-            (
-                "run",
-                format!(
-                    "{:.1} s, scene `{}`, {} clients",
-                    self.seconds,
-                    opts.scene.display(),
-                    opts.clients
-                ),
-            ),
-            (
-                "frames stepped",
-                format!(
-                    "{} in {:.1} s; {:.2} s from the kill until the resumed server answered",
-                    self.frames, self.seconds, self.downtime
-                ),
-            ),
-            (
-                "step rate while up",
-                self.rates
-                    .iter()
-                    .map(|r| format!("{:.1}% of real time", r * self.dt * 100.0))
-                    .collect::<Vec<_>>()
-                    .join(" before the kill, ")
-                    + if self.rates.len() > 1 {
-                        " after the resume"
-                    } else {
-                        ""
-                    },
-            ),
-            ("overruns (steps started late)", self.overruns.to_string()),
-            (
-                "step time p50 / p99 / max",
-                format!(
-                    "{:.3} / {:.3} / {:.3} ms",
-                    self.step_ms_p50, self.step_ms_p99, self.step_ms_max
-                ),
-            ),
-            (
-                "commands sent",
-                format!(
-                    "{} ({} invalid, {} oversized)",
-                    self.commands_sent, self.invalid_sent, self.oversized_sent
-                ),
-            ),
-            (
-                "applied / refused / rate-limited / queue full",
-                format!(
-                    "{} / {} / {} / {}",
-                    h.applied, h.refused, h.rate_limited, h.queue_full
-                ),
-            ),
-            (
-                "requests sent / answered / missed",
-                format!(
-                    "{} / {} / {}",
-                    self.requests_sent, self.requests_answered, self.requests_missed
-                ),
-            ),
-            (
-                "retries answered from the first answer",
-                h.retries.to_string(),
-            ),
-            (
-                "accepted requests not in the journal",
-                self.accepted_not_journaled.to_string(),
-            ),
-            ("journal at the end", format!("{:.1} MiB", self.journal_mib)),
-            (
-                "replies and events unsent (slow peers)",
-                h.unsent.to_string(),
-            ),
-        ];
-        let _ = writeln!(s, "| figure | value |\n|---|---|");
-        for (k, v) in rows {
-            let _ = writeln!(s, "| {k} | {v} |");
-        }
-        for (i, m) in self.rss.iter().enumerate() {
-            let which = if i == 0 && self.rss.len() > 1 {
-                "killed server"
-            } else if i > 0 {
-                "resumed server"
-            } else {
-                "server"
-            };
-            let warm = m
-                .warm
-                .map(|w| {
-                    format!(
-                        ", {w:.2} after {} s ({:+.1}% from then to the end)",
-                        WARM_UP.as_secs(),
-                        (m.end / w - 1.0) * 100.0
-                    )
-                })
-                .unwrap_or_default();
-            let _ = writeln!(
-                s,
-                "| allocated memory (resident, anonymous), {which} | {:.2} MiB at start{warm}, {:.2} peak, {:.2} at end ({:+.1}% against the start) |",
-                m.start,
-                m.peak,
-                m.end,
-                (m.end / m.start - 1.0) * 100.0
-            );
-            if let Some(idle) = m.idle {
-                let _ = writeln!(
-                    s,
-                    "| allocated memory {} s after the load ended, {which} | {idle:.2} MiB ({:+.1}% against the start) |",
-                    IDLE_AFTER.as_secs(),
-                    (idle / m.start - 1.0) * 100.0
-                );
-            }
-            let _ = writeln!(
-                s,
-                "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end |",
-                m.total_start, m.total_end
-            );
-        }
-        s
-    }
-}
-
-/// The options of the soak as run for docs/reliability.md, as a command line.
-pub fn command_line(opts: &SoakOptions, out: Option<&Path>) -> String {
-    let mut s = format!(
-        "ricochet-server soak --scene {} --seconds {} --clients {} --rate {} --requests {} --stall-at {} --stall-for {}",
-        opts.scene.display(), opts.seconds, opts.clients, opts.rate, opts.requests, opts.stall_at, opts.stall_for
-    );
-    if let Some(k) = opts.kill_at {
-        let _ = write!(s, " --kill-at {k}");
-    }
-    if let Some(out) = out {
-        let _ = write!(s, " --out {}", out.display());
-    }
-    s
 }

@@ -1,0 +1,236 @@
+//! The command line of `ricochet-server`: its subcommands and their flags.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand};
+use ricochet_protocol::keys::DEFAULT_WORLD;
+use ricochet_protocol::net::NetworkArgs;
+
+#[derive(Parser)]
+#[command(
+    name = "ricochet-server",
+    version,
+    about = "Ricochet: a 2D physics and particle server"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Args)]
+pub struct RunArgs {
+    /// The scene file (TOML).
+    #[arg(long, required_unless_present = "resume")]
+    pub scene: Option<PathBuf>,
+    /// The world's name in key expressions.
+    #[arg(long, default_value = DEFAULT_WORLD)]
+    pub world: String,
+    #[command(flatten)]
+    pub network: NetworkArgs,
+    /// Start paused; `resume` or `step` commands move the world.
+    #[arg(long)]
+    pub paused: bool,
+    /// Override a `[world]` field (as for simulate). Repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// A key frame (all dynamic state) every this many frames.
+    #[arg(long, default_value_t = 60)]
+    pub keyframe_interval: u64,
+    /// Stop after this many frames instead of running until killed.
+    #[arg(long)]
+    pub max_frames: Option<u64>,
+    /// Append every frame the server publishes to this file as JSON Lines, in the
+    /// form of `simulate --dump` (full precision), flushed each frame.
+    #[arg(long, value_name = "FILE")]
+    pub dump: Option<PathBuf>,
+    /// The directory `load` commands may name scenes in (nothing outside it is read);
+    /// the directory of --scene by default.
+    #[arg(long, value_name = "DIR")]
+    pub scenes: Option<PathBuf>,
+    /// Lower or raise a limit of the hosted worlds, e.g. --limit bodies=5000
+    /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
+    /// `[limits]` may lower these, never raise them. Repeatable.
+    #[arg(long = "limit", value_name = "NAME=VALUE")]
+    pub limit: Vec<String>,
+    /// Steps per second of wall time at most: a world with a shorter dt runs slower
+    /// than real time instead of flooding its viewers.
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    pub max_rate: f64,
+    /// Commands a second each sender may send over time (a sender is the zenoh id its
+    /// session declares; Ricochet's clients declare theirs). Over it, commands are
+    /// dropped and requests answered so.
+    #[arg(long, default_value_t = 1000.0, value_name = "N")]
+    pub sender_rate: f64,
+    /// Commands a sender may send at once above its rate.
+    #[arg(long, default_value_t = 500.0, value_name = "N")]
+    pub sender_burst: f64,
+    /// Commands (and, apart, requests) waiting for the frame boundary at most; past it
+    /// they are dropped and requests answered so.
+    #[arg(long, default_value_t = 4096, value_name = "N")]
+    pub queue: usize,
+    /// Write every accepted command, with the frame it took effect in, and every stepped
+    /// frame to FILE (JSON Lines, each line flushed as written), so the world can be
+    /// resumed after a crash with --resume FILE.
+    #[arg(long, value_name = "FILE", conflicts_with = "resume")]
+    pub journal: Option<PathBuf>,
+    /// Rebuild the world a journal holds, bit for bit, to its last frame, and go on
+    /// (appending to the same journal). The journal gives the scene, world name,
+    /// overrides and limits; --scene, --world, --set and --limit are not needed.
+    #[arg(long, value_name = "FILE")]
+    pub resume: Option<PathBuf>,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Host a world on zenoh and run it in real time at the scene's fixed step.
+    ///
+    /// With no flags it listens on tcp/127.0.0.1:7447 and clients on the same machine
+    /// connect there by default. Commands arrive on ricochet/<world>/cmd (fire and forget)
+    /// and ricochet/<world>/rpc (request, reply); frames leave on ricochet/<world>/frame,
+    /// the statics snapshot on ricochet/<world>/snapshot (also a queryable), the dynamic
+    /// state for late joiners on the ricochet/<world>/state queryable, one event per
+    /// handled command on ricochet/<world>/event; a liveliness token
+    /// ricochet/<world>/alive/<zid> says the world is up and which peer serves it.
+    Run(RunArgs),
+    /// Measure the engine's speed on shipped scenes (figures, not pass/fail).
+    ///
+    /// The 100-level pyramid under each solver setting (with its worst drift over the
+    /// run), particles among shapes, free particles, and a hero among few or many static
+    /// platforms: the scenes of assets/scenes/ and assets/scenes/bench/. Prints a table;
+    /// with --out writes DIR/bench.csv and the table of DIR/README.md. Use a release
+    /// build.
+    Bench {
+        /// Steps of the pyramid (the brief: 500). The chapter's relaxation runs at most 20:
+        /// it is quadratic in the pile.
+        #[arg(long, default_value_t = 500)]
+        steps: u64,
+        /// Only the cases whose scene contains this.
+        #[arg(long)]
+        only: Option<String>,
+        /// Write DIR/bench.csv and the generated table of DIR/README.md (docs/bench).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Where the scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Measure the pyramid under this setting instead of the listed ones: overrides of
+        /// the shipped scene's `[world]` as NAME=VALUE (repeatable), e.g.
+        /// `--set impulse_iterations=6 --set substeps=1`.
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<String>,
+    },
+    /// Measure what each solver setting costs and buys.
+    ///
+    /// Runs the matrix of scenes x solver settings and writes DIR/tradeoff.csv and
+    /// DIR/tradeoff.png (time against error, the front in red). Use a release build.
+    Tradeoff {
+        /// Where to write the report.
+        #[arg(long, default_value = "docs/tradeoff")]
+        out: PathBuf,
+    },
+    /// Soak a real server on loopback and measure it (figures, not pass/fail).
+    ///
+    /// Starts `run` on the scene, journaled; client sessions send valid, invalid and
+    /// oversized commands at --rate in all and requests (retried with ids) that must all
+    /// be answered; a viewer stops reading frames for --stall-for seconds; at --kill-at
+    /// the server is killed (SIGKILL) and resumed from its journal. Prints a table; with
+    /// --out, writes it between the soak markers of FILE (docs/reliability.md). Use a
+    /// release build.
+    Soak {
+        #[arg(long, default_value = "assets/scenes/particles.toml")]
+        scene: PathBuf,
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        #[arg(long, default_value_t = 4)]
+        clients: usize,
+        /// Fire-and-forget commands a second, all clients together.
+        #[arg(long, default_value_t = 10_000.0)]
+        rate: f64,
+        /// Requests a second of each client (each waits for its answer).
+        #[arg(long, default_value_t = 20.0)]
+        requests: f64,
+        #[arg(long, default_value_t = 10.0)]
+        stall_at: f64,
+        #[arg(long, default_value_t = 10.0)]
+        stall_for: f64,
+        /// When to kill and resume the server, seconds into the run; never if absent.
+        #[arg(long)]
+        kill_at: Option<f64>,
+        /// Extra arguments of the server's `run`. Repeatable.
+        #[arg(long = "server-arg", value_name = "ARG", allow_hyphen_values = true)]
+        server_args: Vec<String>,
+        /// Write the table between the soak markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
+    /// Make the TLS certificates of a secured deployment (assets/zenoh/): a certificate
+    /// authority and the router's certificate signed by it, as PEM files in DIR
+    /// (ca.pem, ca-key.pem, router.pem, router-key.pem; keys readable by their owner
+    /// only). Clients trust ca.pem; keep ca-key.pem offline.
+    Certs {
+        /// Where to write them.
+        #[arg(long, default_value = "certs", value_name = "DIR")]
+        out: PathBuf,
+        /// A host name or IP address clients reach the router by. Repeatable.
+        #[arg(long = "host", value_name = "NAME", default_values_t = ["localhost".to_string(), "127.0.0.1".to_string()])]
+        hosts: Vec<String>,
+        /// Days the certificates are valid.
+        #[arg(long, default_value_t = 365)]
+        days: u32,
+    },
+    /// Run a zenoh router where servers and clients on several hosts meet.
+    ///
+    /// They connect to it with `--mode client --connect tcp/<router>:7447`.
+    Router {
+        #[command(flatten)]
+        network: NetworkArgs,
+    },
+    /// Run a scene headless for a number of steps, without any network.
+    ///
+    /// Line 0 of the dump is the state before the first step, line k the state after k
+    /// steps: {"frame":k,"t":seconds,"bodies":[{"id","x","y","vx","vy","collided"}],
+    /// "particles":[{"x","y","size","color":[r,g,b,a]}],"emitters":count}.
+    ///
+    /// The same scene, seed and inputs give the same frames, bit for bit.
+    Simulate(SimulateArgs),
+}
+
+/// What `simulate` runs and writes.
+#[derive(clap::Args)]
+pub struct SimulateArgs {
+    /// The scene file (TOML), e.g. assets/scenes/emitters.toml.
+    #[arg(long)]
+    pub scene: PathBuf,
+    /// How many fixed steps to run.
+    #[arg(long)]
+    pub steps: u64,
+    /// Seed of the world's random generator (overrides the scene's `[world] seed`).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Override a `[world]` field, e.g. --set relaxation_iterations=30
+    /// --set gravity=[0,-9.8] --set integrator=explicit. Repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Write every frame as JSON Lines to this file ("-" for standard output).
+    #[arg(long)]
+    pub dump: Option<PathBuf>,
+    /// Actions to apply, JSON Lines of {"frame": N, "action": {"do": ...}}: each is
+    /// applied after N steps, before step N + 1, in file order.
+    #[arg(long)]
+    pub inputs: Option<PathBuf>,
+    /// Write every step's figures as JSON Lines to this file (line k: step k): contacts,
+    /// solver passes, deepest penetration, kinetic energy, particle contacts, sleeping
+    /// bodies.
+    #[arg(long, value_name = "FILE")]
+    pub stats: Option<PathBuf>,
+    /// Encode every frame as the server would send it and report the bytes per frame,
+    /// per dynamic body and per particle.
+    #[arg(long)]
+    pub wire_stats: bool,
+    /// With --wire-stats: a key frame every this many frames, as `run` would send.
+    #[arg(long, default_value_t = 60)]
+    pub keyframe_interval: u64,
+    /// Lower or raise a limit of the world, as for `run` (docs/security.md). Repeatable.
+    #[arg(long = "limit", value_name = "NAME=VALUE")]
+    pub limit: Vec<String>,
+}

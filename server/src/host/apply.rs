@@ -1,0 +1,99 @@
+//! The frame boundary's work on one command or request: a retried id gets its first
+//! answer; anything else is handled by the world, journaled, and made an event.
+
+use ricochet_protocol::command::{Command, Event, Reply};
+use zenoh::query::Query;
+
+use super::answered::{Answer, Answered};
+use super::hosted::{Handled, Hosted};
+use super::inbox::{Inbox, Incoming};
+use super::journal::Journal;
+use super::outbox::Outbox;
+
+/// A reply waiting for the steps its `step` asked for.
+pub(super) struct Deferred {
+    pub due_at_step: u64,
+    pub query: Query,
+    pub reply: Box<[u8]>,
+}
+
+/// Applies one command or request at the frame boundary: a retried id gets its first
+/// answer, anything else is handled by the world; every handled command becomes an event.
+pub(super) fn apply_incoming(
+    host: &mut Hosted,
+    incoming: Incoming,
+    answered: &mut Answered,
+    deferred: &mut Vec<Deferred>,
+    journal: &mut Option<Journal>,
+    inbox: &Inbox,
+    outbox: &Outbox,
+) {
+    let Incoming {
+        payload,
+        sender,
+        query,
+    } = incoming;
+    let frame = host.world.frame();
+    let (id, parsed) = Command::parse_request(&payload, host.world.limits().command_bytes as usize);
+    let answer = match id.as_deref().and_then(|id| answered.get(&sender, id)) {
+        Some(first) => {
+            host.health.retries += 1;
+            first.clone()
+        }
+        None => {
+            let Handled {
+                mut reply,
+                due_at_step,
+            } = match &parsed {
+                Ok(command) => host.handle(command),
+                Err(error) => {
+                    host.health.refused += 1;
+                    Handled {
+                        reply: Reply::refused(frame, error.clone()),
+                        due_at_step: 0,
+                    }
+                }
+            };
+            reply.id = id.clone();
+            tracing::trace!(
+                frame,
+                ok = reply.ok,
+                pending = host.pending_steps,
+                "applied"
+            );
+            if let (Some(journal), Ok(command)) = (journal.as_mut(), &parsed) {
+                journal.handled(command, &reply, &sender, &id, host);
+            }
+            if !reply.ok {
+                tracing::debug!(
+                    frame,
+                    "command refused: {}",
+                    reply.error.as_deref().unwrap_or("")
+                );
+            }
+            inbox.event(&Event {
+                frame: reply.frame,
+                ok: reply.ok,
+                command: parsed.ok(),
+                ids: reply.ids.clone(),
+                error: reply.error.clone(),
+            });
+            let answer = Answer::new(&reply, due_at_step);
+            if let Some(id) = id {
+                answered.remember(sender, id, answer.clone());
+            }
+            answer
+        }
+    };
+    if let Some(query) = query {
+        if answer.due_at_step > host.steps_run {
+            deferred.push(Deferred {
+                due_at_step: answer.due_at_step,
+                query,
+                reply: answer.reply,
+            });
+        } else {
+            outbox.reply(query, answer.reply.into_vec());
+        }
+    }
+}

@@ -1,0 +1,147 @@
+//! The soak's report as a Markdown table, and the command line that made it.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::{SoakOptions, SoakReport, IDLE_AFTER, WARM_UP};
+
+impl SoakReport {
+    /// The report as a Markdown table.
+    pub fn to_markdown(&self, opts: &SoakOptions) -> String {
+        let mut s = String::new();
+        let h = &self.health;
+        let rows: Vec<(&str, String)> = vec![
+            (
+                "run",
+                format!(
+                    "{:.1} s, scene `{}`, {} clients",
+                    self.seconds,
+                    opts.scene.display(),
+                    opts.clients
+                ),
+            ),
+            (
+                "frames stepped",
+                format!(
+                    "{} in {:.1} s; {:.2} s from the kill until the resumed server answered",
+                    self.frames, self.seconds, self.downtime
+                ),
+            ),
+            (
+                "step rate while up",
+                self.rates
+                    .iter()
+                    .map(|r| format!("{:.1}% of real time", r * self.dt * 100.0))
+                    .collect::<Vec<_>>()
+                    .join(" before the kill, ")
+                    + if self.rates.len() > 1 {
+                        " after the resume"
+                    } else {
+                        ""
+                    },
+            ),
+            ("overruns (steps started late)", self.overruns.to_string()),
+            (
+                "step time p50 / p99 / max",
+                format!(
+                    "{:.3} / {:.3} / {:.3} ms",
+                    self.step_ms_p50, self.step_ms_p99, self.step_ms_max
+                ),
+            ),
+            (
+                "commands sent",
+                format!(
+                    "{} ({} invalid, {} oversized)",
+                    self.commands_sent, self.invalid_sent, self.oversized_sent
+                ),
+            ),
+            (
+                "applied / refused / rate-limited / queue full",
+                format!(
+                    "{} / {} / {} / {}",
+                    h.applied, h.refused, h.rate_limited, h.queue_full
+                ),
+            ),
+            (
+                "requests sent / answered / missed",
+                format!(
+                    "{} / {} / {}",
+                    self.requests_sent, self.requests_answered, self.requests_missed
+                ),
+            ),
+            (
+                "retries answered from the first answer",
+                h.retries.to_string(),
+            ),
+            (
+                "accepted requests not in the journal",
+                self.accepted_not_journaled.to_string(),
+            ),
+            ("journal at the end", format!("{:.1} MiB", self.journal_mib)),
+            (
+                "replies and events unsent (slow peers)",
+                h.unsent.to_string(),
+            ),
+        ];
+        let _ = writeln!(s, "| figure | value |\n|---|---|");
+        for (k, v) in rows {
+            let _ = writeln!(s, "| {k} | {v} |");
+        }
+        for (i, m) in self.rss.iter().enumerate() {
+            let which = if i == 0 && self.rss.len() > 1 {
+                "killed server"
+            } else if i > 0 {
+                "resumed server"
+            } else {
+                "server"
+            };
+            let warm = m
+                .warm
+                .map(|w| {
+                    format!(
+                        ", {w:.2} after {} s ({:+.1}% from then to the end)",
+                        WARM_UP.as_secs(),
+                        (m.end / w - 1.0) * 100.0
+                    )
+                })
+                .unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "| allocated memory (resident, anonymous), {which} | {:.2} MiB at start{warm}, {:.2} peak, {:.2} at end ({:+.1}% against the start) |",
+                m.start,
+                m.peak,
+                m.end,
+                (m.end / m.start - 1.0) * 100.0
+            );
+            if let Some(idle) = m.idle {
+                let _ = writeln!(
+                    s,
+                    "| allocated memory {} s after the load ended, {which} | {idle:.2} MiB ({:+.1}% against the start) |",
+                    IDLE_AFTER.as_secs(),
+                    (idle / m.start - 1.0) * 100.0
+                );
+            }
+            let _ = writeln!(
+                s,
+                "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end |",
+                m.total_start, m.total_end
+            );
+        }
+        s
+    }
+}
+
+/// The options of the soak as run for docs/reliability.md, as a command line.
+pub fn command_line(opts: &SoakOptions, out: Option<&Path>) -> String {
+    let mut s = format!(
+        "ricochet-server soak --scene {} --seconds {} --clients {} --rate {} --requests {} --stall-at {} --stall-for {}",
+        opts.scene.display(), opts.seconds, opts.clients, opts.rate, opts.requests, opts.stall_at, opts.stall_for
+    );
+    if let Some(k) = opts.kill_at {
+        let _ = write!(s, " --kill-at {k}");
+    }
+    if let Some(out) = out {
+        let _ = write!(s, " --out {}", out.display());
+    }
+    s
+}
