@@ -160,7 +160,6 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     let mut server = ServerProcess::start(&first_args)?;
     let watcher = Client::open(&network, world)?;
     wait_answered(&watcher, Duration::from_secs(30))?;
-    server.mark_start();
     let dt = watcher.info(Duration::from_secs(5))?.dt;
 
     // The frames' own figures: step time and overruns, per frame.
@@ -184,6 +183,18 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
             .wait()
             .map_err(|e| anyhow!("subscribe: {e}"))?
     };
+
+    // Every session connected before the load, and the server's memory taken then: its
+    // start is a server with its clients, before they act.
+    let sessions = (0..opts.clients)
+        .map(|_| Client::open(&network, world).map(Arc::new))
+        .collect::<Result<Vec<_>>>()?;
+    let stalled = Client::open(&network, world)?;
+    for client in sessions.iter().map(|c| &**c).chain([&stalled]) {
+        wait_answered(client, Duration::from_secs(30))?;
+    }
+    std::thread::sleep(Duration::from_secs(1));
+    server.mark_start();
 
     // The run starts with the first frame seen.
     let waiting = Instant::now();
@@ -210,7 +221,6 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     // frames off the socket.
     let stall_from = began + Duration::from_secs_f64(opts.stall_at);
     let stall_until = stall_from + Duration::from_secs_f64(opts.stall_for);
-    let stalled = Client::open(&network, world)?;
     let stalled_frames = stalled
         .session()
         .declare_subscriber(stalled.keys().frame.clone())
@@ -223,8 +233,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
         .wait()
         .map_err(|e| anyhow!("subscribe: {e}"))?;
 
-    for c in 0..opts.clients {
-        let client = Arc::new(Client::open(&network, world)?);
+    for (c, client) in sessions.into_iter().enumerate() {
         // Commands at the client's share of the rate, in 1 ms batches.
         let per_ms = opts.rate / opts.clients as f64 / 1000.0;
         let (sender, sent, oversized, invalid) = (
