@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 /// Process `pid`'s resident memory, MiB (Linux): (anonymous, all). Anonymous memory is
 /// what the process allocated (heap, stacks, buffers); the rest is mostly its executable's
 /// code, paged in from the file as code paths first run, shared and reclaimable.
-fn rss_mib(pid: u32) -> Option<(f64, f64)> {
+fn rss_mib(pid: u32) -> Option<(f64, f64, u32)> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let field = |name: &str| -> Option<f64> {
         let kib: f64 = status
@@ -22,7 +22,14 @@ fn rss_mib(pid: u32) -> Option<(f64, f64)> {
             .ok()?;
         Some(kib / 1024.0)
     };
-    Some((field("RssAnon:")?, field("VmRSS:")?))
+    let threads = status
+        .lines()
+        .find(|l| l.starts_with("Threads:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()?;
+    Some((field("RssAnon:")?, field("VmRSS:")?, threads))
 }
 
 /// Resident anonymous memory of a server process (what it allocated), MiB, sampled every
@@ -36,6 +43,9 @@ pub struct Memory {
     pub end: f64,
     pub total_start: f64,
     pub total_end: f64,
+    /// The process's threads at start and at the end.
+    pub threads_start: u32,
+    pub threads_end: u32,
     /// Anonymous memory [`IDLE_AFTER`] after the load ended (the server that lived to the
     /// end only).
     pub idle: Option<f64>,
@@ -81,12 +91,13 @@ impl ServerProcess {
         let (samples, on) = (rss.clone(), sampling.clone());
         std::thread::spawn(move || {
             while on.load(Ordering::Relaxed) {
-                if let Some((mib, total)) = rss_mib(pid) {
+                if let Some((mib, total, threads)) = rss_mib(pid) {
                     let mut s = samples.lock().unwrap();
                     if let Some(since) = s.1 {
                         s.0.peak = s.0.peak.max(mib);
                         s.0.end = mib;
                         s.0.total_end = total;
+                        s.0.threads_end = threads;
                         if s.0.warm.is_none() && since.elapsed() >= WARM_UP {
                             s.0.warm = Some(mib);
                         }
@@ -104,7 +115,7 @@ impl ServerProcess {
 
     /// Takes the memory now as the start: the server is up, its world loaded.
     pub(super) fn mark_start(&self) {
-        if let Some((mib, total)) = rss_mib(self.child.id()) {
+        if let Some((mib, total, threads)) = rss_mib(self.child.id()) {
             let mut s = self.rss.lock().unwrap();
             *s = (
                 Memory {
@@ -114,6 +125,8 @@ impl ServerProcess {
                     end: mib,
                     total_start: total,
                     total_end: total,
+                    threads_start: threads,
+                    threads_end: threads,
                     idle: None,
                 },
                 Some(Instant::now()),
@@ -123,7 +136,7 @@ impl ServerProcess {
 
     /// Takes the memory now as the idle figure.
     pub(super) fn mark_idle(&self) {
-        if let Some((mib, _)) = rss_mib(self.child.id()) {
+        if let Some((mib, _, _)) = rss_mib(self.child.id()) {
             self.rss.lock().unwrap().0.idle = Some(mib);
         }
     }

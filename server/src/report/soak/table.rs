@@ -126,6 +126,11 @@ impl SoakReport {
                 "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end |",
                 m.total_start, m.total_end
             );
+            let _ = writeln!(
+                s,
+                "| threads, {which} | {} at start, {} at the end |",
+                m.threads_start, m.threads_end
+            );
         }
         s
     }
