@@ -184,17 +184,12 @@ fn only_authorised_peers_act_through_the_secured_router() {
 
     // An impostor with a client's credentials publishes frames and answers requests.
     let impostor = Client::open(&as_role("client", &endpoint), "acl").expect("impostor");
-    let fake_reply = br#"{"ok":true,"frame":0,"ids":["impostor"]}"#.to_vec();
-    let queryable = impostor
-        .session()
-        .declare_queryable(&impostor.keys().rpc)
-        .callback(move |query| {
-            let _ = query
-                .reply(query.key_expr().clone(), fake_reply.clone())
-                .wait();
-        })
-        .wait()
-        .unwrap();
+    let queryable = answer_every_query(
+        impostor.session(),
+        &impostor.keys().rpc,
+        br#"{"ok":true,"frame":0,"ids":["impostor"]}"#,
+        Default::default(),
+    );
     let watch = client.frames().unwrap();
     for _ in 0..20 {
         impostor

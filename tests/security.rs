@@ -198,34 +198,18 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
 
     // The impostor answers the world's requests and info, beside the server.
     let asked = Arc::new(AtomicUsize::new(0));
-    let fake_reply = br#"{"ok":true,"frame":0,"ids":["impostor"]}"#.to_vec();
-    let counter = asked.clone();
-    let _rpc = impostor
-        .session()
-        .declare_queryable(&impostor.keys().rpc)
-        .callback(move |query| {
-            counter.fetch_add(1, Ordering::Relaxed);
-            let _ = query
-                .reply(query.key_expr().clone(), fake_reply.clone())
-                .wait();
-        })
-        .wait()
-        .unwrap();
-    let fake_info =
-        br#"{"scene":"impostor","bounds":[[0,0],[1,1]],"dt":0.1,"groups":[],"generation":0}"#
-            .to_vec();
-    let counter = asked.clone();
-    let _info = impostor
-        .session()
-        .declare_queryable(&impostor.keys().info)
-        .callback(move |query| {
-            counter.fetch_add(1, Ordering::Relaxed);
-            let _ = query
-                .reply(query.key_expr().clone(), fake_info.clone())
-                .wait();
-        })
-        .wait()
-        .unwrap();
+    let _rpc = answer_every_query(
+        impostor.session(),
+        &impostor.keys().rpc,
+        br#"{"ok":true,"frame":0,"ids":["impostor"]}"#,
+        asked.clone(),
+    );
+    let _info = answer_every_query(
+        impostor.session(),
+        &impostor.keys().info,
+        br#"{"scene":"impostor","bounds":[[0,0],[1,1]],"dt":0.1,"groups":[],"generation":0}"#,
+        asked.clone(),
+    );
     // Bounded: until the impostor's queryables are known to the client.
     let began = Instant::now();
     while asked.load(Ordering::Relaxed) == 0 {
@@ -250,17 +234,12 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
 
     // The impostor alone, on a world no server holds: nothing is taken from it.
     let unserved = Client::open(&both, "unserved").unwrap();
-    let lone_reply = br#"{"ok":true,"frame":0}"#.to_vec();
-    let _lone = impostor
-        .session()
-        .declare_queryable(&unserved.keys().rpc)
-        .callback(move |query| {
-            let _ = query
-                .reply(query.key_expr().clone(), lone_reply.clone())
-                .wait();
-        })
-        .wait()
-        .unwrap();
+    let _lone = answer_every_query(
+        impostor.session(),
+        &unserved.keys().rpc,
+        br#"{"ok":true,"frame":0}"#,
+        Default::default(),
+    );
     let began = Instant::now();
     loop {
         let refused = unserved

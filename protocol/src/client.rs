@@ -151,24 +151,8 @@ impl Client {
     /// The zenoh ids of the peers holding the world's liveliness token now: one when the
     /// world is served, none when it is not.
     pub fn servers(&self, timeout: Duration) -> Result<Vec<String>> {
-        let replies = self
-            .session
-            .liveliness()
-            .get(self.keys.alive_tokens())
-            .timeout(timeout)
-            .wait()
-            .map_err(|e| anyhow!("{}: {e}", self.keys.alive))?;
-        let mut zids = Vec::new();
-        while let Ok(reply) = replies.recv() {
-            if let Ok(sample) = reply.result() {
-                if let Some((_, zid)) = keys::parse_alive(sample.key_expr().as_str()) {
-                    zids.push(zid.to_string());
-                }
-            }
-        }
-        zids.sort();
-        zids.dedup();
-        Ok(zids)
+        let tokens = alive_tokens(&self.session, &self.keys.alive_tokens(), timeout)?;
+        Ok(tokens.into_iter().map(|(_, zid)| zid).collect())
     }
 
     /// Whether `zid` holds the world's token, and alone: read from the last list of
@@ -303,6 +287,12 @@ impl Client {
     /// are not newer are skipped by the decoder.
     pub fn join(&self, timeout: Duration) -> Result<(FrameStream, crate::frame::FrameDecoder)> {
         let stream = self.frames()?;
+        Ok((stream, self.catch_up(timeout)?))
+    }
+
+    /// A decoder brought up to date from scratch: statics from the snapshot, dynamic state
+    /// from a resync key frame (for a late joiner, or after the server changed).
+    pub fn catch_up(&self, timeout: Duration) -> Result<crate::frame::FrameDecoder> {
         let mut decoder = crate::frame::FrameDecoder::new();
         decoder
             .apply(&self.snapshot(timeout)?)
@@ -310,7 +300,7 @@ impl Client {
         decoder
             .apply(&self.state(timeout)?)
             .map_err(|e| anyhow!("state: {e}"))?;
-        Ok((stream, decoder))
+        Ok(decoder)
     }
 
     fn fetch(&self, key: &str, timeout: Duration) -> Result<Vec<u8>> {
@@ -326,21 +316,32 @@ pub fn parse_event(sample: &Sample) -> Result<Event> {
 
 /// The worlds whose servers are up, by their liveliness tokens.
 pub fn list_worlds(session: &Session, timeout: Duration) -> Result<Vec<String>> {
+    let mut worlds: Vec<String> = alive_tokens(session, keys::ALL_ALIVE, timeout)?
+        .into_iter()
+        .map(|(world, _)| world)
+        .collect();
+    worlds.dedup();
+    Ok(worlds)
+}
+
+/// The liveliness tokens matching `key` now, as (world, server's zenoh id), sorted, each
+/// once.
+fn alive_tokens(session: &Session, key: &str, timeout: Duration) -> Result<Vec<(String, String)>> {
     let replies = session
         .liveliness()
-        .get(keys::ALL_ALIVE)
+        .get(key)
         .timeout(timeout)
         .wait()
-        .map_err(|e| anyhow!("list worlds: {e}"))?;
-    let mut worlds = Vec::new();
+        .map_err(|e| anyhow!("{key}: {e}"))?;
+    let mut tokens = Vec::new();
     while let Ok(reply) = replies.recv() {
         if let Ok(sample) = reply.result() {
-            if let Some((w, _)) = keys::parse_alive(sample.key_expr().as_str()) {
-                worlds.push(w.to_string());
+            if let Some((world, zid)) = keys::parse_alive(sample.key_expr().as_str()) {
+                tokens.push((world.to_string(), zid.to_string()));
             }
         }
     }
-    worlds.sort();
-    worlds.dedup();
-    Ok(worlds)
+    tokens.sort();
+    tokens.dedup();
+    Ok(tokens)
 }

@@ -181,3 +181,23 @@ pub fn request(client: &Client, command: Command) -> ricochet_protocol::command:
 pub fn resume(client: &Client) {
     assert!(request(client, Command::Server(ServerCommand::Resume)).ok);
 }
+
+/// A queryable on `key` (an impostor's) that answers every query with `reply` and counts
+/// the queries it got.
+pub fn answer_every_query(
+    session: &zenoh::Session,
+    key: &str,
+    reply: &[u8],
+    asked: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+) -> zenoh::query::Queryable<()> {
+    use zenoh::Wait;
+    let reply = reply.to_vec();
+    session
+        .declare_queryable(key.to_string())
+        .callback(move |query| {
+            asked.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let _ = query.reply(query.key_expr().clone(), reply.clone()).wait();
+        })
+        .wait()
+        .expect("declare a queryable")
+}

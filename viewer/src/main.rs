@@ -22,7 +22,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{ArgGroup, Parser};
 use ricochet_protocol::client::{parse_event, Client};
-use ricochet_protocol::frame::{DecodeError, FrameDecoder};
+use ricochet_protocol::frame::DecodeError;
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, NetworkArgs};
 
@@ -173,18 +173,6 @@ fn info_generation(client: &Client) -> Option<u64> {
         .map(|i| i.generation)
 }
 
-/// A decoder brought up to date from scratch: statics from the snapshot, then the state.
-fn rejoin(client: &Client) -> Result<FrameDecoder> {
-    let mut decoder = FrameDecoder::new();
-    decoder
-        .apply(&client.snapshot(Duration::from_secs(2))?)
-        .map_err(|e| anyhow!("snapshot: {e}"))?;
-    decoder
-        .apply(&client.state(Duration::from_secs(2))?)
-        .map_err(|e| anyhow!("state: {e}"))?;
-    Ok(decoder)
-}
-
 /// Asks for the world's info until its server answers or `wait` runs out.
 fn wait_for_world(
     client: &Client,
@@ -279,7 +267,7 @@ fn run(opts: Opts) -> Result<()> {
             );
             if !now.0.is_empty() && now.1.is_some() && now != source {
                 // A new server, or a new scene: the statics and state again, from scratch.
-                match rejoin(&client) {
+                match client.catch_up(Duration::from_secs(2)) {
                     Ok(fresh) => {
                         decoder = fresh;
                         new_statics = true;

@@ -204,11 +204,10 @@ pub fn run(opts: HostOptions) -> Result<()> {
         },
         outbox.clone(),
     ));
-    let to = |inbox: &Arc<Inbox>| inbox.clone();
     let _commands = session
         .declare_subscriber(&keys.cmd)
         .callback({
-            let inbox = to(&inbox);
+            let inbox = Arc::clone(&inbox);
             move |sample| inbox.offer_command(sample)
         })
         .wait()
@@ -216,7 +215,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let _requests = session
         .declare_queryable(&keys.rpc)
         .callback({
-            let inbox = to(&inbox);
+            let inbox = Arc::clone(&inbox);
             move |query| inbox.offer_request(query)
         })
         .wait()
@@ -227,7 +226,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
         (&keys.state, Ask::State),
         (&keys.info, Ask::Info),
     ] {
-        let inbox = to(&inbox);
+        let inbox = Arc::clone(&inbox);
         queryables.push(
             session
                 .declare_queryable(key)
