@@ -20,7 +20,7 @@
 //! to the same journal.
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::io::{BufRead, BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -178,15 +178,35 @@ pub struct Resumed {
 /// Rebuilds the world `path` journals, to its last journaled frame, and opens the journal
 /// to go on appending. `opts` gives what the journal does not (network, rates, ...).
 pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
-    let mut text = String::new();
-    File::open(path)
-        .and_then(|f| BufReader::new(f).read_to_string(&mut text))
-        .with_context(|| format!("cannot read the journal {}", path.display()))?;
+    // Read a line at a time: a journal may hold hours of commands, and only the world it
+    // builds is kept.
+    let mut reader = BufReader::new(
+        File::open(path).with_context(|| format!("cannot open the journal {}", path.display()))?,
+    );
     let at = |n: usize| format!("journal {} line {n}", path.display());
-    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
-    let (_, first) = lines.next().ok_or_else(|| anyhow!("{}: empty", at(1)))?;
+    let mut raw = String::new();
+    // The next line, without its newline; `None` at the end, and for a last line the kill cut
+    // short (no newline: it was never flushed whole, so nothing it held was answered).
+    let mut n = 0;
+    let mut whole: u64 = 0;
+    let mut next = |raw: &mut String| -> Result<Option<usize>> {
+        raw.clear();
+        let got = reader
+            .read_line(raw)
+            .with_context(|| format!("cannot read the journal {}", path.display()))?;
+        if got == 0 || !raw.ends_with('\n') {
+            return Ok(None);
+        }
+        n += 1;
+        whole += got as u64;
+        raw.pop();
+        Ok(Some(n))
+    };
+    if next(&mut raw)?.is_none() {
+        bail!("{}: empty, or its header cut short", at(1));
+    }
     let header: Header =
-        serde_json::from_str(first).with_context(|| format!("{}: not a journal header", at(1)))?;
+        serde_json::from_str(&raw).with_context(|| format!("{}: not a journal header", at(1)))?;
     if header.journal != VERSION {
         bail!(
             "{}: journal version {} (this server reads {VERSION})",
@@ -204,15 +224,8 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     let mut host = Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
         .with_context(|| format!("{}: the journal's scene", at(1)))?;
     let mut answered = Answered::default();
-    let ends_cleanly = text.ends_with('\n');
-    let count = text.lines().count();
-    for (n, raw) in lines {
-        let line: Line = match serde_json::from_str(raw) {
-            Ok(line) => line,
-            // A last line cut short by the kill: what it held was not yet done.
-            Err(_) if n == count && !ends_cleanly => break,
-            Err(e) => bail!("{}: {e}", at(n)),
-        };
+    while let Some(n) = next(&mut raw)? {
+        let line: Line = serde_json::from_str(&raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
         match line {
             Line::At { at: frame } => {
                 host.step();
@@ -275,11 +288,11 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         .append(true)
         .open(path)
         .with_context(|| format!("cannot append to the journal {}", path.display()))?;
-    if !ends_cleanly {
-        // A line cut short is garbage in the middle of the journal once more is appended:
-        // cut it off.
-        let keep = text.rfind('\n').map_or(0, |i| i + 1) as u64;
-        file.set_len(keep)?;
+    // A line cut short is garbage in the middle of the journal once more is appended: cut
+    // it off.
+    let whole = whole;
+    if file.metadata()?.len() > whole {
+        file.set_len(whole)?;
     }
     Ok(Resumed {
         world: header.world,
@@ -301,4 +314,91 @@ fn check_frame(host: &Hosted, frame: u64, at: &str) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::io::Write as _;
+
+    use ricochet_protocol::net::Network;
+
+    use super::*;
+    use crate::host::inbox::InboxLimits;
+
+    fn options() -> HostOptions {
+        HostOptions {
+            scene: None,
+            world: "journaled".into(),
+            network: Network::default(),
+            paused: false,
+            overrides: Vec::new(),
+            keyframe_interval: 60,
+            max_frames: None,
+            dump: None,
+            scenes_dir: PathBuf::from("."),
+            limits: Limits::default(),
+            max_rate: 1000.0,
+            inbox: InboxLimits::default(),
+            journal: None,
+            resume: None,
+        }
+    }
+
+    /// A journal of `steps` stepped frames of the shipped bounce scene, and the world's
+    /// frame at its end.
+    fn journal_of(path: &Path, steps: usize) -> u64 {
+        let opts = options();
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/scenes/bounce.toml");
+        let text = std::fs::read_to_string(scene).unwrap();
+        let mut host = Hosted::load(text, PathBuf::from(scene), &opts).unwrap();
+        let mut journal = Journal::create(path, "journaled", &host, &opts).unwrap();
+        for _ in 0..steps {
+            host.step();
+            journal.stepped(host.world.frame());
+        }
+        host.world.frame()
+    }
+
+    fn append(path: &Path, bytes: &[u8]) {
+        let mut file = OpenOptions::new().append(true).open(path).unwrap();
+        file.write_all(bytes).unwrap();
+    }
+
+    #[test]
+    fn a_last_line_cut_short_is_not_replayed_and_is_cut_off() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let frame = journal_of(&path, 5);
+        let whole = std::fs::metadata(&path).unwrap().len();
+        // The kill cut the next step's line short: even a line that parses is not whole
+        // without its newline (it was never flushed whole, so never answered).
+        append(&path, format!("{{\"at\":{}}}", frame + 1).as_bytes());
+        let resumed = resume(&path, &options()).unwrap();
+        assert_eq!(resumed.host.world.frame(), frame);
+        assert_eq!(std::fs::metadata(&path).unwrap().len(), whole);
+        // Resumed once more, the journal is whole: the same frame again.
+        drop(resumed);
+        assert_eq!(resume(&path, &options()).unwrap().host.world.frame(), frame);
+    }
+
+    #[test]
+    fn a_bad_line_in_the_middle_is_refused_naming_its_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let frame = journal_of(&path, 3);
+        append(&path, b"{\"at\":garbage}\n");
+        append(&path, format!("{{\"at\":{}}}\n", frame + 1).as_bytes());
+        let error = format!("{:#}", resume(&path, &options()).err().unwrap());
+        // The header, three steps, then the bad line: line 5.
+        assert!(error.contains("world.journal line 5"), "{error}");
+    }
+
+    #[test]
+    fn an_empty_journal_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        std::fs::write(&path, "").unwrap();
+        let error = format!("{:#}", resume(&path, &options()).err().unwrap());
+        assert!(error.contains("line 1: empty"), "{error}");
+    }
 }

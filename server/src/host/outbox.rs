@@ -7,9 +7,14 @@
 //! reply is dropped and counted (the querier then sees its query end unanswered). The
 //! server's session also caps how long a blocked send may wait before zenoh closes that
 //! peer's link (`wait_before_close`, set in [`super::server_config`]).
+//!
+//! The queue is a linked one (std's unbounded channel, bounded here by a count): its memory
+//! follows what is waiting and is given back as it drains. An array ring of the same bound
+//! would take 4096 slots (about 0.7 MiB) and, as its ends go round, keep every page of them
+//! resident after the first few thousand messages.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{channel, Sender};
 use std::sync::Arc;
 
 use zenoh::pubsub::Publisher;
@@ -27,7 +32,9 @@ enum Out {
 /// The sending end, cheap to clone into zenoh's callbacks.
 #[derive(Clone)]
 pub struct Outbox {
-    tx: SyncSender<Out>,
+    tx: Sender<Out>,
+    /// Replies and events queued and not yet taken by the sending thread.
+    waiting: Arc<AtomicUsize>,
     /// Replies and events dropped: the queue was full, or zenoh refused them.
     pub unsent: Arc<AtomicU64>,
 }
@@ -35,13 +42,15 @@ pub struct Outbox {
 impl Outbox {
     /// Starts the sending thread; it ends when every [`Outbox`] is dropped.
     pub fn start(events: Publisher<'static>) -> Outbox {
-        let (tx, rx) = sync_channel::<Out>(OUTBOX_CAPACITY);
+        let (tx, rx) = channel::<Out>();
         let unsent = Arc::new(AtomicU64::new(0));
-        let failed = unsent.clone();
+        let waiting = Arc::new(AtomicUsize::new(0));
+        let (failed, taken) = (unsent.clone(), waiting.clone());
         std::thread::Builder::new()
             .name("ricochet-outbox".into())
             .spawn(move || {
                 for out in rx {
+                    taken.fetch_sub(1, Ordering::Relaxed);
                     let sent = match out {
                         Out::Reply(query, body) => {
                             query.reply(query.key_expr().clone(), body).wait()
@@ -55,18 +64,35 @@ impl Outbox {
                 }
             })
             .expect("the outbox thread starts");
-        Outbox { tx, unsent }
+        Outbox {
+            tx,
+            waiting,
+            unsent,
+        }
     }
 
     /// An outbox whose thread never runs: everything sent to it counts as unsent (for
     /// tests of what feeds it).
     #[cfg(test)]
     pub fn detached() -> Outbox {
-        let (tx, _) = sync_channel::<Out>(1);
+        let (tx, _) = channel::<Out>();
         Outbox {
             tx,
+            waiting: Arc::new(AtomicUsize::new(0)),
             unsent: Arc::new(AtomicU64::new(0)),
         }
+    }
+
+    /// An outbox whose queue nobody drains, and its receiving end (for tests of the bound).
+    #[cfg(test)]
+    fn stalled() -> (Outbox, std::sync::mpsc::Receiver<Out>) {
+        let (tx, rx) = channel::<Out>();
+        let outbox = Outbox {
+            tx,
+            waiting: Arc::new(AtomicUsize::new(0)),
+            unsent: Arc::new(AtomicU64::new(0)),
+        };
+        (outbox, rx)
     }
 
     /// Queues a reply to `query`; never blocks.
@@ -80,11 +106,49 @@ impl Outbox {
     }
 
     fn send(&self, out: Out) {
-        match self.tx.try_send(out) {
-            Ok(()) => {}
-            Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
-                self.unsent.fetch_add(1, Ordering::Relaxed);
-            }
+        // Take a place first: the count never passes the bound, whoever sends at once.
+        let placed = self
+            .waiting
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| {
+                (n < OUTBOX_CAPACITY).then_some(n + 1)
+            })
+            .is_ok();
+        if !placed {
+            self.unsent.fetch_add(1, Ordering::Relaxed);
+        } else if self.tx.send(out).is_err() {
+            self.waiting.fetch_sub(1, Ordering::Relaxed);
+            self.unsent.fetch_add(1, Ordering::Relaxed);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_outbox_drops_and_counts_and_takes_again_as_it_drains() {
+        let (outbox, rx) = Outbox::stalled();
+        for _ in 0..OUTBOX_CAPACITY + 3 {
+            outbox.event(vec![1]);
+        }
+        assert_eq!(outbox.unsent.load(Ordering::Relaxed), 3);
+        assert_eq!(outbox.waiting.load(Ordering::Relaxed), OUTBOX_CAPACITY);
+        // The sending thread takes one (as its loop does), and one more fits.
+        assert!(rx.try_recv().is_ok());
+        outbox.waiting.fetch_sub(1, Ordering::Relaxed);
+        outbox.event(vec![2]);
+        outbox.event(vec![3]);
+        assert_eq!(outbox.unsent.load(Ordering::Relaxed), 4);
+        assert_eq!(rx.try_iter().count(), OUTBOX_CAPACITY);
+    }
+
+    #[test]
+    fn an_outbox_whose_thread_is_gone_counts_everything_unsent() {
+        let outbox = Outbox::detached();
+        outbox.event(vec![1]);
+        outbox.event(vec![2]);
+        assert_eq!(outbox.unsent.load(Ordering::Relaxed), 2);
+        assert_eq!(outbox.waiting.load(Ordering::Relaxed), 0);
     }
 }

@@ -14,7 +14,7 @@
 mod process;
 mod table;
 
-pub use process::{Memory, IDLE_AFTER, WARM_UP};
+pub use process::{Memory, IDLE_AFTER, SETTLE, WARM_UP};
 pub use table::command_line;
 
 use process::ServerProcess;
@@ -185,7 +185,8 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     };
 
     // Every session connected before the load, and the server's memory taken then: its
-    // start is a server with its clients, before they act.
+    // start is a server with its clients, before they act, past one heap trim (as its end
+    // is), so what connecting left freed but untrimmed does not count.
     let sessions = (0..opts.clients)
         .map(|_| Client::open(&network, world).map(Arc::new))
         .collect::<Result<Vec<_>>>()?;
@@ -193,7 +194,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     for client in sessions.iter().map(|c| &**c).chain([&stalled]) {
         wait_answered(client, Duration::from_secs(30))?;
     }
-    std::thread::sleep(Duration::from_secs(1));
+    std::thread::sleep(SETTLE);
     server.mark_start();
 
     // The run starts with the first frame seen.

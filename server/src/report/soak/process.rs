@@ -56,6 +56,10 @@ pub struct Memory {
 pub const IDLE_AFTER: Duration =
     Duration::from_secs(crate::host::answered::REMEMBER_FOR.as_secs() + 12);
 
+/// How long the connected clients wait before the load starts and the server's memory is
+/// taken as its start: past one of the server's heap trims.
+pub const SETTLE: Duration = Duration::from_secs(crate::host::TRIM_EVERY.as_secs() + 1);
+
 /// When a server's memory counts as warmed up.
 pub const WARM_UP: Duration = Duration::from_secs(10);
 

@@ -87,6 +87,19 @@ impl SoakReport {
         for (k, v) in rows {
             let _ = writeln!(s, "| {k} | {v} |");
         }
+        // The goal's figure: the world's memory with its clients connected and quiet, before
+        // any load (the first server's start), against the server that ran to the end, idle
+        // after the load.
+        if let (Some(first), Some(idle)) = (self.rss.first(), self.rss.last().and_then(|m| m.idle))
+        {
+            let _ = writeln!(
+                s,
+                "| allocated memory back after the load | {:.2} MiB before the load, {idle:.2} MiB {} s after it ended ({:+.1}%) |",
+                first.start,
+                IDLE_AFTER.as_secs(),
+                (idle / first.start - 1.0) * 100.0
+            );
+        }
         for (i, m) in self.rss.iter().enumerate() {
             let which = if i == 0 && self.rss.len() > 1 {
                 "killed server"
@@ -123,8 +136,10 @@ impl SoakReport {
             }
             let _ = writeln!(
                 s,
-                "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end |",
-                m.total_start, m.total_end
+                "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end ({:+.1}%) |",
+                m.total_start,
+                m.total_end,
+                (m.total_end / m.total_start - 1.0) * 100.0
             );
             let _ = writeln!(
                 s,
