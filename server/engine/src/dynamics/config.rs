@@ -17,6 +17,10 @@ pub enum Integrator {
     Symplectic,
     /// Explicit Euler: `p += v_old dt; v += a dt`. Kept for comparison: it gains energy.
     Explicit,
+    /// Exact for constant acceleration: `p += v_old dt + a dt²/2; v += a dt`. A body in
+    /// flight follows the closed form to rounding; under the impulse solver a body that a
+    /// contact pushed in the step moves as symplectic Euler (its contact set its velocity).
+    Exact,
 }
 
 impl Integrator {

@@ -61,6 +61,9 @@ pub struct ImpulseParams {
     /// The frame's time step.
     pub dt: f64,
     pub substeps: u32,
+    /// Move bodies no contact pushed by the closed form of constant acceleration
+    /// (`p += v_old h + a h²/2`) instead of symplectic Euler (`p += v_new h`).
+    pub exact_flight: bool,
 }
 
 /// One body as the solver streams it.
@@ -201,6 +204,8 @@ pub struct SolverBuffers {
     /// Velocity each body gains per second (gravity).
     accel: Vec<DVec2>,
     contacts: Vec<Contact>,
+    /// Bodies a contact pushed in the sub-step (exact flight only).
+    pushed: Vec<bool>,
 }
 
 /// One frame of the impulse solver over the candidate `pairs` (body indices, `a < b`,
@@ -231,6 +236,7 @@ pub fn solve_frame(
         bodies: sb,
         accel: gain,
         contacts,
+        pushed,
     } = buffers;
     sb.clear();
     sb.extend(bodies.iter().map(|b| SolverBody {
@@ -275,9 +281,26 @@ pub fn solve_frame(
             report.contacts += 1;
             report.deepest = report.deepest.max(-gap);
         }
+        // The approach speed at impact: a pair found apart closes its gap under its relative
+        // acceleration first, so it meets faster (or slower) than it was found moving
+        // (`v_i² = v² - 2 a s`, energy along the normal). Bouncing with the speed found
+        // would lose the energy gained over the gap at every bounce.
         let approach = rel.dot(n);
-        let bounce = if approach < -RESTITUTION_SPEED {
-            -a.restitution.min(b.restitution) * approach
+        let gains = |body: &Body| {
+            if body.inv_mass > 0.0 {
+                accel(body)
+            } else {
+                DVec2::ZERO
+            }
+        };
+        let impact = if gap > 0.0 && approach < 0.0 {
+            let closing = approach * approach - 2.0 * (gains(b) - gains(a)).dot(n) * gap;
+            -closing.max(0.0).sqrt()
+        } else {
+            approach
+        };
+        let bounce = if impact < -RESTITUTION_SPEED {
+            -a.restitution.min(b.restitution) * impact
         } else {
             0.0
         };
@@ -345,10 +368,30 @@ pub fn solve_frame(
                 fresh,
             );
         }
-        for &i in movers {
-            let body = &mut sb[i as usize];
-            body.delta += (body.vel + body.pseudo) * h;
-            body.pseudo = DVec2::ZERO;
+        if params.exact_flight {
+            pushed.clear();
+            pushed.resize(sb.len(), false);
+            for c in contacts.iter() {
+                if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
+                    pushed[c.a as usize] = true;
+                    pushed[c.b as usize] = true;
+                }
+            }
+            // In flight: `p += v_old h + g h²/2`, with `v_old = v - g h`.
+            for (&i, &g) in movers.iter().zip(gain.iter()) {
+                let body = &mut sb[i as usize];
+                body.delta += (body.vel + body.pseudo) * h;
+                if !pushed[i as usize] {
+                    body.delta -= g * (0.5 * h * h);
+                }
+                body.pseudo = DVec2::ZERO;
+            }
+        } else {
+            for &i in movers {
+                let body = &mut sb[i as usize];
+                body.delta += (body.vel + body.pseudo) * h;
+                body.pseudo = DVec2::ZERO;
+            }
         }
         for _ in 0..params.relax_iterations {
             report.passes += 1;

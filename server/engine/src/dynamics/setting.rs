@@ -163,6 +163,7 @@ mod tests {
             (Solver::Impulses.name(), json(&Solver::Impulses)),
             (Integrator::Symplectic.name(), json(&Integrator::Symplectic)),
             (Integrator::Explicit.name(), json(&Integrator::Explicit)),
+            (Integrator::Exact.name(), json(&Integrator::Exact)),
         ] {
             assert_eq!(format!("\"{name}\""), text);
         }

@@ -5,7 +5,7 @@ use crate::behavior::Behavior;
 use crate::dynamics::body::GroupId;
 use crate::dynamics::broad_phase::BroadPhase;
 use crate::dynamics::ccd;
-use crate::dynamics::config::Solver;
+use crate::dynamics::config::{Integrator, Solver};
 use crate::dynamics::impulse::{self, ImpulseParams};
 use crate::dynamics::integrate::{self, integrate_bodies};
 use crate::dynamics::relaxation::{self, RelaxationParams};
@@ -305,6 +305,7 @@ impl World {
             split_impulses: config.split_impulses,
             dt: h,
             substeps: config.substeps,
+            exact_flight: config.integrator == Integrator::Exact,
         };
         let grid = config.broad_phase == BroadPhase::Grid;
         let mut pairs = if grid {

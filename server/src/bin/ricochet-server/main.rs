@@ -46,7 +46,6 @@ fn main() -> Result<()> {
             journal,
             resume,
         }) => {
-            host::without_thread_caches();
             for (flag, value) in [
                 ("--sender-rate", sender_rate),
                 ("--sender-burst", sender_burst),

@@ -46,6 +46,7 @@ fn params() -> ImpulseParams {
         split_impulses: false,
         dt: 1.0 / 60.0,
         substeps: 1,
+        exact_flight: false,
     }
 }
 
