@@ -55,6 +55,9 @@ pub fn settings() -> Vec<Setting> {
         s("relaxation 15, explicit Euler", &|c| {
             c.integrator = Integrator::Explicit
         }),
+        s("relaxation 15, exact flight", &|c| {
+            c.integrator = Integrator::Exact
+        }),
         s("relaxation 5", &|c| c.relaxation_iterations = 5),
         s("relaxation 50", &|c| c.relaxation_iterations = 50),
         s("relaxation 15, 4 sub-steps", &|c| c.substeps = 4),
@@ -63,6 +66,10 @@ pub fn settings() -> Vec<Setting> {
             c.impulse_iterations = 4;
         }),
         s("impulses 8 it", &|c| c.solver = Solver::Impulses),
+        s("impulses 8 it, exact flight", &|c| {
+            c.solver = Solver::Impulses;
+            c.integrator = Integrator::Exact;
+        }),
         s("impulses 8 it, 2 sub-steps", &|c| {
             c.solver = Solver::Impulses;
             c.substeps = 2;

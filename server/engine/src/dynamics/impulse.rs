@@ -321,7 +321,9 @@ pub fn solve_frame(
             tangent_impulse: if warm { jt } else { 0.0 },
             pseudo_impulse: 0.0,
             pair: k as u32,
-            speculative: gap > SPECULATIVE_GAP * size,
+            // A bouncing pair closes its gap, however small, before it bounces: bouncing
+            // from short of the surface would give it the gap's height for nothing.
+            speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
             fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
         });
     }

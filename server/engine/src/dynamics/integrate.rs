@@ -127,7 +127,7 @@ mod tests {
         let mut thrown = ball(1.0);
         thrown.vel = DVec2::new(7.0, 31.0);
         let (p0, v0, g, dt) = (thrown.pos, thrown.vel, config.gravity, 1.0 / 60.0);
-        let mut bodies = vec![thrown.clone()];
+        let mut bodies = vec![thrown];
         let mut worst: f64 = 0.0;
         for n in 1..=120u32 {
             integrate_bodies(&mut bodies, &config, dt);

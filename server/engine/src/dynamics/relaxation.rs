@@ -27,6 +27,34 @@ pub const FRICTION_REST_SPEED: f64 = 0.01;
 pub struct RelaxationParams {
     pub iterations: u32,
     pub correction_rate: f64,
+    /// Bounce with the speed the pair had when it met, not the speed it has found sunk in
+    /// by the depth (`v_s² = v² + 2 a_n d`, its relative acceleration `a_n` along the
+    /// normal): the projection lifts it back to the surface, and bouncing with the deeper
+    /// speed would add the energy of that lift. `None`: the chapter's bounce. Used with
+    /// the exact integrator, whose flight holds the energy this keeps.
+    pub impact: Option<Gravity>,
+}
+
+/// The acceleration bodies feel, as the integrator applies it.
+#[derive(Clone, Copy, Debug)]
+pub struct Gravity {
+    pub world: DVec2,
+    /// Scaled by the inverse mass (the chapter's `mass_scaled_acceleration`).
+    pub mass_scaled: bool,
+}
+
+impl Gravity {
+    fn of(&self, body: &Body) -> DVec2 {
+        if body.inv_mass == 0.0 {
+            return DVec2::ZERO;
+        }
+        let a = body.gravity.unwrap_or(self.world);
+        if self.mass_scaled {
+            a * body.inv_mass
+        } else {
+            a
+        }
+    }
 }
 
 impl RelaxationParams {
@@ -122,7 +150,11 @@ fn relax_passes<I: Iterator<Item = (u32, u32)>>(
                 report.contacts += 1;
                 report.deepest = report.deepest.max(info.depth);
                 let (a, b) = pair_mut(bodies, i, j);
-                resolve_collision(a, b, &info, params.correction_rate, offset);
+                let sunk = params.impact.map(|g| Sunk {
+                    depth: info.depth,
+                    accel: (g.of(b) - g.of(a)).dot(info.normal),
+                });
+                resolve_collision(a, b, &info, params.correction_rate, offset, sunk);
             }
         }
         if !any {
@@ -156,14 +188,24 @@ pub fn detect_only(bodies: &mut [Body], group_a: &[u32], group_b: &[u32]) -> Rel
     report
 }
 
+/// How far a pair sank in past the surface, and its relative acceleration along the
+/// normal: what its speed at the surface is reckoned from.
+#[derive(Clone, Copy, Debug)]
+pub struct Sunk {
+    pub depth: f64,
+    pub accel: f64,
+}
+
 /// Resolves one collision: positional correction, friction, then the restitution impulse
-/// ("resolveCollision", steps A to F). `info.normal` points from `a` toward `b`.
+/// ("resolveCollision", steps A to F). `info.normal` points from `a` toward `b`. With
+/// `sunk`, the bounce is of the speed at the surface (see [`RelaxationParams::impact`]).
 pub fn resolve_collision(
     a: &mut Body,
     b: &mut Body,
     info: &CollisionInfo,
     correction_rate: f64,
     relaxation_offset: f64,
+    sunk: Option<Sunk>,
 ) {
     let inv_sum = a.inv_mass + b.inv_mass;
     if inv_sum == 0.0 {
@@ -189,7 +231,13 @@ pub fn resolve_collision(
     }
     // Step F: impulse with the smaller restitution.
     let e = a.restitution.min(b.restitution);
-    let j = -(1.0 + e) * v_n / inv_sum;
+    let j = match sunk {
+        None => -(1.0 + e) * v_n / inv_sum,
+        Some(Sunk { depth, accel }) => {
+            let at_surface = (v_n * v_n + 2.0 * accel * depth).max(0.0).sqrt();
+            (e * at_surface - v_n) / inv_sum
+        }
+    };
     a.vel -= n * (j * a.inv_mass);
     b.vel += n * (j * b.inv_mass);
 }
@@ -233,7 +281,7 @@ mod tests {
         b.restitution = 0.9;
         let p0 = a.vel * a.mass() + b.vel * b.mass();
         let info = collide(&a.shape, a.pos, &b.shape, b.pos).unwrap();
-        resolve_collision(&mut a, &mut b, &info, 0.8, 1.0 / 15.0);
+        resolve_collision(&mut a, &mut b, &info, 0.8, 1.0 / 15.0, None);
         let p1 = a.vel * a.mass() + b.vel * b.mass();
         assert!((p1 - p0).length() < 1e-12, "momentum {p0} -> {p1}");
         // Separation speed = e * approach speed with e = min(0.5, 0.9).
@@ -257,7 +305,7 @@ mod tests {
         );
         let info = collide(&a.shape, a.pos, &b.shape, b.pos).unwrap();
         assert!((info.depth - 0.5).abs() < 1e-12);
-        resolve_collision(&mut a, &mut b, &info, 0.8, 1.0);
+        resolve_collision(&mut a, &mut b, &info, 0.8, 1.0, None);
         // 0.8 * 0.5 = 0.4 removed, a takes 1/4 of it and b 3/4.
         assert!((a.pos.x + 0.1).abs() < 1e-12);
         assert!((b.pos.x - (1.5 + 0.3)).abs() < 1e-12);
@@ -281,6 +329,7 @@ mod tests {
             RelaxationParams {
                 iterations: 15,
                 correction_rate: 0.8,
+                impact: None,
             },
         );
         assert_eq!(r.contacts, 0);
@@ -291,7 +340,7 @@ mod tests {
             normal: DVec2::X,
         };
         let (a, b) = pair_mut(&mut bodies, 0, 1);
-        resolve_collision(a, b, &info, 0.8, 1.0);
+        resolve_collision(a, b, &info, 0.8, 1.0, None);
         assert!(a.pos.is_finite() && b.pos.is_finite());
     }
 
@@ -323,7 +372,7 @@ mod tests {
             1.0,
         );
         let info = collide(&platform.shape, platform.pos, &slider.shape, slider.pos).unwrap();
-        resolve_collision(&mut platform, &mut slider, &info, 0.8, 1.0 / 15.0);
+        resolve_collision(&mut platform, &mut slider, &info, 0.8, 1.0 / 15.0, None);
         assert!(slider.vel.x < 5.0 && slider.vel.x > 0.0, "{}", slider.vel);
     }
 
@@ -348,6 +397,7 @@ mod tests {
                 RelaxationParams {
                     iterations: n,
                     correction_rate: 0.01,
+                    impact: None,
                 },
             );
             assert_eq!(r.iterations, n);
@@ -373,6 +423,7 @@ mod tests {
             RelaxationParams {
                 iterations: 15,
                 correction_rate: 0.8,
+                impact: None,
             },
         );
         assert_eq!(

@@ -8,7 +8,7 @@ use crate::dynamics::ccd;
 use crate::dynamics::config::{Integrator, Solver};
 use crate::dynamics::impulse::{self, ImpulseParams};
 use crate::dynamics::integrate::{self, integrate_bodies};
-use crate::dynamics::relaxation::{self, RelaxationParams};
+use crate::dynamics::relaxation::{self, Gravity, RelaxationParams};
 use crate::dynamics::sleep;
 use crate::geometry::Shape;
 use crate::particles::system::{ParticleShape, ShapeGrid};
@@ -166,6 +166,10 @@ impl World {
         let params = RelaxationParams {
             iterations: self.config.relaxation_iterations,
             correction_rate: self.config.correction_rate,
+            impact: (self.config.integrator == Integrator::Exact).then_some(Gravity {
+                world: self.config.gravity,
+                mass_scaled: self.config.mass_scaled_acceleration,
+            }),
         };
         for k in 0..self.interactions.len() {
             let inter = self.interactions[k];
