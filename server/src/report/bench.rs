@@ -68,6 +68,18 @@ pub struct Row {
     pub nan: bool,
 }
 
+/// The platform scenes under every solver: static bodies no contact touches must cost
+/// nothing under any of them.
+fn platform_settings() -> Vec<(String, Vec<String>)> {
+    let mut v = vec![("shipped".to_string(), Vec::new())];
+    v.push(("impulses".into(), set(&["solver=impulses"])));
+    v.push((
+        "impulses, grid".into(),
+        set(&["solver=impulses", "broad_phase=grid"]),
+    ));
+    v
+}
+
 fn set(overrides: &[&str]) -> Vec<String> {
     overrides.iter().map(|s| s.to_string()).collect()
 }
@@ -156,14 +168,14 @@ pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
             scene: "bench/platforms-10.toml",
             warmup: 0,
             steps: 600,
-            settings: shipped(),
+            settings: platform_settings(),
             figure: Figure::None,
         },
         Case {
             scene: "bench/platforms-10k.toml",
             warmup: 0,
             steps: 600,
-            settings: shipped(),
+            settings: platform_settings(),
             figure: Figure::None,
         },
     ]

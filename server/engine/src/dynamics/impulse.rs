@@ -80,6 +80,7 @@ struct SolverBody {
 /// One contact, as the inner loop reads it.
 #[derive(Clone, Copy, Debug)]
 struct Contact {
+    /// The two bodies' places among the solver's bodies (not their indices in the world).
     a: u32,
     b: u32,
     normal: DVec2,
@@ -197,10 +198,20 @@ pub struct ImpulseReport {
     pub passes: u64,
 }
 
+/// No place among the solver's bodies.
+const UNSLOTTED: u32 = u32::MAX;
+
 /// Reusable buffers of the solver.
 #[derive(Clone, Debug, Default)]
 pub struct SolverBuffers {
+    /// The bodies the frame moves (first, in the order of `movers`), then the others its
+    /// contacts touch: a static body no contact touches costs nothing.
     bodies: Vec<SolverBody>,
+    /// Each world body's place in `bodies`, [`UNSLOTTED`] if none: set for the frame and
+    /// reset after it.
+    slot: Vec<u32>,
+    /// The world bodies given a place this frame.
+    slotted: Vec<u32>,
     /// Velocity each body gains per second (gravity).
     accel: Vec<DVec2>,
     contacts: Vec<Contact>,
@@ -234,17 +245,37 @@ pub fn solve_frame(
 
     let SolverBuffers {
         bodies: sb,
+        slot,
+        slotted,
         accel: gain,
         contacts,
         pushed,
     } = buffers;
+    if slot.len() < bodies.len() {
+        slot.resize(bodies.len(), UNSLOTTED);
+    }
     sb.clear();
-    sb.extend(bodies.iter().map(|b| SolverBody {
-        vel: b.vel,
-        pseudo: DVec2::ZERO,
-        delta: DVec2::ZERO,
-        inv_mass: b.inv_mass,
-    }));
+    slotted.clear();
+    // A body's place among the solver's bodies, given at its first use.
+    let mut place = |i: u32, sb: &mut Vec<SolverBody>| -> u32 {
+        let s = &mut slot[i as usize];
+        if *s == UNSLOTTED {
+            let b = &bodies[i as usize];
+            *s = sb.len() as u32;
+            sb.push(SolverBody {
+                vel: b.vel,
+                pseudo: DVec2::ZERO,
+                delta: DVec2::ZERO,
+                inv_mass: b.inv_mass,
+            });
+            slotted.push(i);
+        }
+        *s
+    };
+    // The movers first: mover k is solver body k.
+    for &i in movers {
+        place(i, sb);
+    }
     gain.clear();
     gain.extend(movers.iter().map(|&i| {
         let b = &bodies[i as usize];
@@ -307,9 +338,10 @@ pub fn solve_frame(
         let slop = params.slop * size;
         // Only contacts that touch start from their last impulses.
         let warm = params.warm_starting && gap <= slop && old_n.dot(n) > 0.99;
+        let (sa, sb_) = (place(i, sb), place(j, sb));
         contacts.push(Contact {
-            a: i,
-            b: j,
+            a: sa,
+            b: sb_,
             normal: n,
             mass: 1.0 / (a.inv_mass + b.inv_mass),
             friction: (a.friction * b.friction).sqrt(),
@@ -344,8 +376,8 @@ pub fn solve_frame(
 
     let mut bouncing = contacts.iter().any(|c| c.bounce > 0.0);
     for step in 0..substeps {
-        for (&i, &g) in movers.iter().zip(gain.iter()) {
-            sb[i as usize].vel += g * h;
+        for (body, &g) in sb.iter_mut().zip(gain.iter()) {
+            body.vel += g * h;
         }
         // Warm start: the impulses of the last sub-step (or frame) once more.
         if params.warm_starting || step > 0 {
@@ -380,17 +412,15 @@ pub fn solve_frame(
                 }
             }
             // In flight: `p += v_old h + g h²/2`, with `v_old = v - g h`.
-            for (&i, &g) in movers.iter().zip(gain.iter()) {
-                let body = &mut sb[i as usize];
+            for (k, (body, &g)) in sb.iter_mut().zip(gain.iter()).enumerate() {
                 body.delta += (body.vel + body.pseudo) * h;
-                if !pushed[i as usize] {
+                if !pushed[k] {
                     body.delta -= g * (0.5 * h * h);
                 }
                 body.pseudo = DVec2::ZERO;
             }
         } else {
-            for &i in movers {
-                let body = &mut sb[i as usize];
+            for body in &mut sb[..movers.len()] {
                 body.delta += (body.vel + body.pseudo) * h;
                 body.pseudo = DVec2::ZERO;
             }
@@ -420,8 +450,8 @@ pub fn solve_frame(
         }
     }
 
-    for &i in movers {
-        let (body, s) = (&mut bodies[i as usize], &sb[i as usize]);
+    for (&i, s) in movers.iter().zip(sb.iter()) {
+        let body = &mut bodies[i as usize];
         body.vel = s.vel;
         body.pos += s.delta;
     }
@@ -431,7 +461,7 @@ pub fn solve_frame(
         pair.normal_impulse = c.normal_impulse;
         pair.tangent_impulse = c.tangent_impulse;
         if c.normal_impulse > 0.0 {
-            for i in [c.a, c.b] {
+            for i in [pair.a, pair.b] {
                 let body = &mut bodies[i as usize];
                 if !body.collided {
                     body.collided = true;
@@ -439,6 +469,9 @@ pub fn solve_frame(
                 }
             }
         }
+    }
+    for &i in slotted.iter() {
+        slot[i as usize] = UNSLOTTED;
     }
     report
 }
