@@ -187,40 +187,62 @@ impl Client {
     ) -> Result<Result<Vec<u8>, Vec<u8>>> {
         // Every reply, unconsolidated: consolidation keeps one reply per key, which could be
         // an impostor's.
-        let mut get = self
-            .session
-            .get(key)
-            .consolidation(ConsolidationMode::None)
-            .source_info(self.source())
-            .timeout(timeout);
-        if let Some(bytes) = payload {
-            get = get.payload(bytes);
-        }
-        let replies = get.wait().map_err(|e| anyhow!("{key}: {e}"))?;
+        let ask = || {
+            let mut get = self
+                .session
+                .get(key)
+                .consolidation(ConsolidationMode::None)
+                .source_info(self.source())
+                .timeout(timeout);
+            if let Some(bytes) = &payload {
+                get = get.payload(bytes.clone());
+            }
+            get.wait().map_err(|e| anyhow!("{key}: {e}"))
+        };
         let deadline = Instant::now() + timeout + Duration::from_millis(500);
         let mut ignored = 0usize;
         let mut refreshed = false;
-        loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            // `Err`: every replier is done; `Ok(None)`: the deadline passed.
-            let Ok(Some(reply)) = replies.recv_timeout(left) else {
-                break;
-            };
-            let from = reply.replier_id().map(|id| id.zid().to_string());
-            match from {
-                Some(zid) if self.is_server(&zid, &mut refreshed, timeout)? => {
-                    return Ok(match reply.result() {
-                        Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
-                        Err(err) => Err(err.payload().to_bytes().into_owned()),
-                    });
-                }
-                _ => {
-                    ignored += 1;
-                    tracing::warn!(
-                        key,
-                        replier = from.as_deref().unwrap_or("unknown"),
-                        "ignored a reply from a peer that does not hold the world's token"
-                    );
+        let mut backoff = Duration::from_millis(50);
+        'asking: loop {
+            let replies = ask()?;
+            let mut heard = false;
+            loop {
+                let left = deadline.saturating_duration_since(Instant::now());
+                match replies.recv_timeout(left) {
+                    Ok(Some(reply)) => {
+                        heard = true;
+                        let from = reply.replier_id().map(|id| id.zid().to_string());
+                        match from {
+                            Some(zid) if self.is_server(&zid, &mut refreshed, timeout)? => {
+                                return Ok(match reply.result() {
+                                    Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+                                    Err(err) => Err(err.payload().to_bytes().into_owned()),
+                                });
+                            }
+                            _ => {
+                                ignored += 1;
+                                tracing::warn!(
+                                    key,
+                                    replier = from.as_deref().unwrap_or("unknown"),
+                                    "ignored a reply from a peer that does not hold the world's token"
+                                );
+                            }
+                        }
+                    }
+                    // The deadline passed.
+                    Ok(None) => break 'asking,
+                    // Every replier is done. With no reply at all, nobody took the query (a
+                    // queryable not yet known along the route, a server restarting): ask
+                    // again, backing off, while the time lasts. A request carries its id,
+                    // so the server applies it once however often it is asked.
+                    Err(_) => {
+                        if heard || Instant::now() + backoff >= deadline {
+                            break 'asking;
+                        }
+                        std::thread::sleep(backoff);
+                        backoff = (backoff * 2).min(Duration::from_secs(1));
+                        continue 'asking;
+                    }
                 }
             }
         }

@@ -387,3 +387,25 @@ fn bodies_are_found_by_id_and_selection_after_others_are_removed() {
     }
     assert_eq!(w.body(&c[0]).unwrap().pos, DVec2::new(100.0, 40.0));
 }
+
+/// `settle_iterations` solves the resting load before the first step: the first step starts
+/// from impulses that hold the pile, so its boxes move far less in it than from a cold start.
+#[test]
+fn settling_starts_the_pile_warm() {
+    let fastest = |settle: u32| {
+        let mut w = asset("pyramid-10.toml");
+        for s in ["solver=impulses", &format!("settle_iterations={settle}")] {
+            w.apply(&set(s)).unwrap();
+        }
+        let built: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
+        w.step();
+        w.bodies()
+            .iter()
+            .zip(&built)
+            .map(|(b, p)| (b.pos - *p).length())
+            .fold(0.0, f64::max)
+    };
+    let (cold, warm) = (fastest(0), fastest(200));
+    assert!(cold > 0.0, "the cold pile did not move at all");
+    assert!(warm < cold / 10.0, "settled {warm} against cold {cold}");
+}

@@ -103,6 +103,14 @@ fn pyramid_settings() -> Vec<(String, Vec<String>)> {
             Vec::new(),
         ),
         (
+            "shipped, settled: 200 passes before the first step".into(),
+            set(&["settle_iterations=200"]),
+        ),
+        (
+            "shipped, settled: 1000 passes before the first step".into(),
+            set(&["settle_iterations=1000"]),
+        ),
+        (
             "relaxation 15 (chapter), sweep".into(),
             set(&["solver=relaxation", "broad_phase=sweep"]),
         ),

@@ -86,6 +86,7 @@ settings! {
     Baumgarte(f64) => baumgarte,
     Slop(f64) => slop,
     RelaxIterations(u32) => relax_iterations,
+    SettleIterations(u32) => settle_iterations,
     ContactHertz(f64) => contact_hertz,
     ContactDamping(f64) => contact_damping,
     SplitImpulses(bool) => split_impulses,

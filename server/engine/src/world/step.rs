@@ -54,7 +54,12 @@ impl World {
                         self.run_interactions(&mut stats, true, false, h);
                     }
                 }
-                Solver::Impulses => self.solve_impulses(&mut stats, dt),
+                Solver::Impulses => {
+                    if self.frame == 0 && self.config.settle_iterations > 0 {
+                        self.settle_impulses(dt);
+                    }
+                    self.solve_impulses(&mut stats, dt)
+                }
             }
             self.explode_dye_packs_on_hero();
             self.move_particles();
@@ -258,6 +263,21 @@ impl World {
                 _ => {}
             }
         }
+    }
+
+    /// Solves the resting load before the first step: one frame of `settle_iterations`
+    /// passes whose contact impulses are kept (the next frame warm-starts from them) and
+    /// whose motion is dropped: positions, velocities and flags are as they were.
+    fn settle_impulses(&mut self, dt: f64) {
+        let bodies = self.bodies.clone();
+        let flagged = self.flagged.clone();
+        let config = self.config.clone();
+        self.config.impulse_iterations = config.settle_iterations;
+        self.config.relax_iterations = 0;
+        self.solve_impulses(&mut StepStats::default(), dt);
+        self.config = config;
+        self.bodies = bodies;
+        self.flagged = flagged;
     }
 
     /// One frame of the impulse solver (all its sub-steps) over the contacts of every rigid
