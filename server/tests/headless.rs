@@ -244,11 +244,15 @@ fn bench_measures_shipped_scenes_and_writes_its_csv_and_table() {
     );
     let csv = std::fs::read_to_string(dir.path().join("bench.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().collect();
-    assert_eq!(rows.len(), 2, "{csv}");
-    assert!(
-        rows[1].starts_with("bench/platforms-10,shipped,,11,0,600,"),
-        "{csv}"
-    );
+    // The header, then the scene as shipped and under each impulse setting.
+    assert_eq!(rows.len(), 4, "{csv}");
+    for (row, start) in rows[1..].iter().zip([
+        "bench/platforms-10,shipped,,11,0,600,",
+        "bench/platforms-10,impulses,solver=impulses,11,0,600,",
+        "bench/platforms-10,\"impulses, grid\",solver=impulses broad_phase=grid,11,0,600,",
+    ]) {
+        assert!(row.starts_with(start), "{csv}");
+    }
     let page = std::fs::read_to_string(dir.path().join("README.md")).unwrap();
     assert!(
         page.contains("| bench/platforms-10 | shipped | 11 |"),
