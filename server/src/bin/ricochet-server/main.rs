@@ -46,6 +46,7 @@ fn main() -> Result<()> {
             journal,
             resume,
         }) => {
+            host::without_thread_caches();
             for (flag, value) in [
                 ("--sender-rate", sender_rate),
                 ("--sender-burst", sender_burst),
