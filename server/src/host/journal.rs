@@ -290,7 +290,6 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         .with_context(|| format!("cannot append to the journal {}", path.display()))?;
     // A line cut short is garbage in the middle of the journal once more is appended: cut
     // it off.
-    let whole = whole;
     if file.metadata()?.len() > whole {
         file.set_len(whole)?;
     }

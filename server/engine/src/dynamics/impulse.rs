@@ -277,14 +277,15 @@ pub fn solve_frame(
         place(i, sb);
     }
     gain.clear();
-    gain.extend(movers.iter().map(|&i| {
-        let b = &bodies[i as usize];
-        if b.inv_mass > 0.0 {
-            accel(b)
+    // What a body gains per second: static bodies gain nothing.
+    let gains = |body: &Body| {
+        if body.inv_mass > 0.0 {
+            accel(body)
         } else {
             DVec2::ZERO
         }
-    }));
+    };
+    gain.extend(movers.iter().map(|&i| gains(&bodies[i as usize])));
 
     contacts.clear();
     for (k, pair) in pairs.iter_mut().enumerate() {
@@ -317,13 +318,6 @@ pub fn solve_frame(
         // (`v_i² = v² - 2 a s`, energy along the normal). Bouncing with the speed found
         // would lose the energy gained over the gap at every bounce.
         let approach = rel.dot(n);
-        let gains = |body: &Body| {
-            if body.inv_mass > 0.0 {
-                accel(body)
-            } else {
-                DVec2::ZERO
-            }
-        };
         let impact = if gap > 0.0 && approach < 0.0 {
             let closing = approach * approach - 2.0 * (gains(b) - gains(a)).dot(n) * gap;
             -closing.max(0.0).sqrt()

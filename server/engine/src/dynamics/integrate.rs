@@ -8,8 +8,14 @@ use super::config::{Integrator, WorldConfig};
 /// The acceleration a body feels: its own or the world's gravity, scaled by the inverse
 /// mass when the world keeps the chapter's convention (`mass_scaled_acceleration`).
 pub fn acceleration(body: &Body, config: &WorldConfig) -> DVec2 {
-    let a = body.gravity.unwrap_or(config.gravity);
-    if config.mass_scaled_acceleration {
+    acceleration_under(body, config.gravity, config.mass_scaled_acceleration)
+}
+
+/// [`acceleration`] under the world gravity `gravity`, scaled by the inverse mass when
+/// `mass_scaled`.
+pub fn acceleration_under(body: &Body, gravity: DVec2, mass_scaled: bool) -> DVec2 {
+    let a = body.gravity.unwrap_or(gravity);
+    if mass_scaled {
         a * body.inv_mass
     } else {
         a

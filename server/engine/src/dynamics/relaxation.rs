@@ -48,12 +48,7 @@ impl Gravity {
         if body.inv_mass == 0.0 {
             return DVec2::ZERO;
         }
-        let a = body.gravity.unwrap_or(self.world);
-        if self.mass_scaled {
-            a * body.inv_mass
-        } else {
-            a
-        }
+        super::integrate::acceleration_under(body, self.world, self.mass_scaled)
     }
 }
 
