@@ -8,7 +8,7 @@
 //! are the client's to make unique (Ricochet's clients use 128 random bits).
 
 use std::collections::{HashMap, VecDeque};
-use std::hash::{BuildHasher, Hash};
+use std::hash::BuildHasher;
 use std::time::{Duration, Instant};
 
 use ricochet_protocol::command::Reply;
@@ -23,8 +23,10 @@ pub const REMEMBERED: usize = 16_384;
 pub const REMEMBER_FOR: Duration = Duration::from_secs(30);
 
 /// A sender's claimed zenoh id, hashed (the claim is the sender's own, so a collision
-/// gives nothing a peer could not get by claiming another's id), and the request id.
-type Key = (u64, Box<str>);
+/// gives nothing a peer could not get by claiming another's id), and the request id hashed
+/// with a key random to this process (a peer cannot aim at another's id); the id itself is
+/// kept too and compared, so a collision is a miss, never another's answer.
+type Key = (u64, u64);
 
 /// A remembered answer: the reply as sent (JSON), compact.
 #[derive(Clone, Debug)]
@@ -45,45 +47,100 @@ impl Answer {
     }
 }
 
+/// One remembered answer; its id and reply are in [`Answered::bytes`] from `start`.
+struct Entry {
+    key: Key,
+    at: Instant,
+    due_at_step: u64,
+    /// Position of its bytes, counted from the first byte ever stored.
+    start: u64,
+    id_len: u32,
+    reply_len: u32,
+}
+
+/// The remembered answers, first in first out, in three buffers: an index, the entries
+/// and their bytes (ids and replies) in one ring. Not an allocation per answer: a burst
+/// of answers, once forgotten, gives its memory back whole instead of leaving it in holes
+/// between longer-lived allocations (which keeps heap pages resident for good).
 pub struct Answered {
-    answers: HashMap<Key, Answer, rustc_hash::FxBuildHasher>,
-    /// Keys in the order remembered, with when.
-    order: VecDeque<(Key, Instant)>,
+    /// Key to sequence number (`first` is `order[0]`'s).
+    index: HashMap<Key, u64, rustc_hash::FxBuildHasher>,
+    order: VecDeque<Entry>,
+    bytes: VecDeque<u8>,
+    /// Sequence number of `order[0]`, and position of `bytes[0]`.
+    first: u64,
+    first_byte: u64,
     senders: rustc_hash::FxBuildHasher,
+    ids: std::hash::RandomState,
 }
 
 impl Default for Answered {
     fn default() -> Self {
         Answered {
-            answers: HashMap::default(),
+            index: HashMap::default(),
             order: VecDeque::new(),
+            bytes: VecDeque::new(),
+            first: 0,
+            first_byte: 0,
             senders: rustc_hash::FxBuildHasher,
+            ids: std::hash::RandomState::new(),
         }
     }
 }
 
 impl Answered {
     fn key(&self, sender: &Sender, id: &str) -> Key {
-        let mut h = self.senders.build_hasher();
-        sender.hash(&mut h);
-        (std::hash::Hasher::finish(&h), id.into())
+        (self.senders.hash_one(sender), self.ids.hash_one(id))
+    }
+
+    fn entry(&self, key: &Key) -> Option<&Entry> {
+        let seq = *self.index.get(key)?;
+        self.order.get((seq - self.first) as usize)
+    }
+
+    fn bytes_of(&self, from: u64, len: u32) -> impl Iterator<Item = &u8> {
+        let at = (from - self.first_byte) as usize;
+        self.bytes.range(at..at + len as usize)
     }
 
     /// The answer given to `id` from `sender`, if it is remembered.
-    pub fn get(&self, sender: &Sender, id: &str) -> Option<&Answer> {
-        self.answers.get(&self.key(sender, id))
+    pub fn get(&self, sender: &Sender, id: &str) -> Option<Answer> {
+        let e = self.entry(&self.key(sender, id))?;
+        if !self.bytes_of(e.start, e.id_len).eq(id.as_bytes()) {
+            return None;
+        }
+        Some(Answer {
+            reply: self
+                .bytes_of(e.start + u64::from(e.id_len), e.reply_len)
+                .copied()
+                .collect(),
+            due_at_step: e.due_at_step,
+        })
     }
 
-    /// Remembers the answer to `id` from `sender`, forgetting what is older than
-    /// [`REMEMBER_FOR`] or past [`REMEMBERED`].
+    /// Remembers the answer to `id` from `sender` (unless an answer to it is remembered),
+    /// forgetting what is older than [`REMEMBER_FOR`] or past [`REMEMBERED`].
     pub fn remember(&mut self, sender: Sender, id: String, answer: Answer) {
         self.remember_at(sender, id, answer, Instant::now());
     }
 
-    fn remember_at(&mut self, sender: Sender, id: String, answer: Answer, now: Instant) {
+    /// [`Answered::remember`] at a given time (a resumed server's answers are as old as
+    /// they were when it stopped).
+    pub fn remember_at(&mut self, sender: Sender, id: String, answer: Answer, now: Instant) {
         let key = self.key(&sender, &id);
-        if self.answers.insert(key.clone(), answer).is_none() {
-            self.order.push_back((key, now));
+        if !self.index.contains_key(&key) {
+            let seq = self.first + self.order.len() as u64;
+            self.index.insert(key, seq);
+            self.order.push_back(Entry {
+                key,
+                at: now,
+                due_at_step: answer.due_at_step,
+                start: self.first_byte + self.bytes.len() as u64,
+                id_len: id.len() as u32,
+                reply_len: answer.reply.len() as u32,
+            });
+            self.bytes.extend(id.as_bytes());
+            self.bytes.extend(&answer.reply[..]);
         }
         self.forget_at(now);
     }
@@ -97,26 +154,41 @@ impl Answered {
     }
 
     fn forget_at(&mut self, now: Instant) {
-        while let Some((old, at)) = self.order.front() {
-            if self.order.len() <= REMEMBERED && now.duration_since(*at) < REMEMBER_FOR {
+        while let Some(old) = self.order.front() {
+            if self.order.len() <= REMEMBERED && now.saturating_duration_since(old.at) < REMEMBER_FOR
+            {
                 break;
             }
-            self.answers.remove(old);
+            let len = old.id_len as usize + old.reply_len as usize;
+            if self.index.get(&old.key) == Some(&self.first) {
+                self.index.remove(&old.key);
+            }
+            self.bytes.drain(..len);
+            self.first_byte += len as u64;
+            self.first += 1;
             self.order.pop_front();
         }
-        if self.answers.capacity() > 4 * self.answers.len().max(256) {
+        if self.order.is_empty() {
+            // Nothing to remember: hold no memory.
+            if self.order.capacity() > 0 {
+                self.index = HashMap::default();
+                self.order = VecDeque::new();
+                self.bytes = VecDeque::new();
+            }
+        } else if self.order.capacity() > 4 * self.order.len().max(256) {
             // After a burst: give the memory back.
-            self.answers.shrink_to_fit();
+            self.index.shrink_to_fit();
             self.order.shrink_to_fit();
+            self.bytes.shrink_to_fit();
         }
     }
 
     pub fn len(&self) -> usize {
-        self.answers.len()
+        self.order.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.answers.is_empty()
+        self.order.is_empty()
     }
 }
 
@@ -137,8 +209,8 @@ mod tests {
         let mut a = Answered::default();
         a.remember(Some("s1".into()), "r".into(), answer(1));
         a.remember(Some("s2".into()), "r".into(), answer(2));
-        assert_eq!(frame(a.get(&Some("s1".into()), "r").unwrap()), 1);
-        assert_eq!(frame(a.get(&Some("s2".into()), "r").unwrap()), 2);
+        assert_eq!(frame(&a.get(&Some("s1".into()), "r").unwrap()), 1);
+        assert_eq!(frame(&a.get(&Some("s2".into()), "r").unwrap()), 2);
         assert!(a.get(&None, "r").is_none());
         for i in 0..REMEMBERED {
             a.remember(None, i.to_string(), answer(3));
@@ -165,5 +237,33 @@ mod tests {
         );
         assert!(a.get(&None, "new").is_some());
         assert_eq!(a.len(), 2);
+    }
+
+    #[test]
+    fn answers_come_back_whole_as_the_ring_turns_and_its_memory_goes_back() {
+        let mut a = Answered::default();
+        let t0 = Instant::now();
+        for i in 0..3 * REMEMBERED as u64 {
+            let sender = (i % 3 == 0).then(|| format!("s{}", i % 7));
+            let answer = Answer::new(&Reply::refused(i, "x".repeat((i % 50) as usize)), i);
+            a.remember_at(sender.clone(), format!("id-{i}"), answer.clone(), t0);
+            // The newest and one a while back, byte for byte.
+            let got = a.get(&sender, &format!("id-{i}")).unwrap();
+            assert_eq!((got.reply, got.due_at_step), (answer.reply, i));
+            if i >= 1000 {
+                let j = i - 1000;
+                let sender = (j % 3 == 0).then(|| format!("s{}", j % 7));
+                assert_eq!(frame(&a.get(&sender, &format!("id-{j}")).unwrap()), j);
+                assert!(a.get(&sender, &format!("id-{j}x")).is_none());
+            }
+        }
+        assert_eq!(a.len(), REMEMBERED);
+        a.forget_at(t0 + REMEMBER_FOR);
+        assert!(a.is_empty());
+        assert_eq!(
+            (a.order.capacity(), a.bytes.capacity(), a.index.capacity()),
+            (0, 0, 0),
+            "nothing remembered, nothing held"
+        );
     }
 }

@@ -38,7 +38,7 @@ pub(super) fn apply_incoming(
     let answer = match id.as_deref().and_then(|id| answered.get(&sender, id)) {
         Some(first) => {
             host.health.retries += 1;
-            first.clone()
+            first
         }
         None => {
             let Handled {

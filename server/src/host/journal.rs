@@ -20,7 +20,9 @@
 //! to the same journal.
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::collections::VecDeque;
+use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::time::{Duration, Instant};
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Context, Result};
@@ -28,7 +30,7 @@ use ricochet_engine::world::Limits;
 use ricochet_protocol::command::{Command, Reply};
 use serde::{Deserialize, Serialize};
 
-use super::answered::{Answer, Answered};
+use super::answered::{Answer, Answered, REMEMBER_FOR};
 use super::hosted::Hosted;
 use super::inbox::Sender;
 use super::HostOptions;
@@ -175,38 +177,65 @@ pub struct Resumed {
     pub opts: HostOptions,
 }
 
-/// Rebuilds the world `path` journals, to its last journaled frame, and opens the journal
-/// to go on appending. `opts` gives what the journal does not (network, rates, ...).
-pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
-    // Read a line at a time: a journal may hold hours of commands, and only the world it
-    // builds is kept.
-    let mut reader = BufReader::new(
-        File::open(path).with_context(|| format!("cannot open the journal {}", path.display()))?,
-    );
-    let at = |n: usize| format!("journal {} line {n}", path.display());
-    let mut raw = String::new();
-    // The next line, without its newline; `None` at the end, and for a last line the kill cut
-    // short (no newline: it was never flushed whole, so nothing it held was answered).
-    let mut n = 0;
-    let mut whole: u64 = 0;
-    let mut next = |raw: &mut String| -> Result<Option<usize>> {
-        raw.clear();
-        let got = reader
-            .read_line(raw)
+/// Reads a journal a line at a time (a journal may hold hours of commands, and only the
+/// world it builds is kept), numbering lines and counting the bytes of whole lines.
+struct Lines<R> {
+    reader: R,
+    raw: String,
+    /// Lines read, counting the first line read as `first`.
+    n: usize,
+    /// Bytes of the whole lines read.
+    whole: u64,
+}
+
+impl<R: BufRead> Lines<R> {
+    fn new(reader: R, first: usize) -> Self {
+        Lines {
+            reader,
+            raw: String::new(),
+            n: first - 1,
+            whole: 0,
+        }
+    }
+
+    /// The next line, without its newline, and its number; `None` at the end, and for a
+    /// last line the kill cut short (no newline: it was never flushed whole, so nothing it
+    /// held was answered).
+    fn next(&mut self, path: &Path) -> Result<Option<(usize, &str)>> {
+        self.raw.clear();
+        let got = self
+            .reader
+            .read_line(&mut self.raw)
             .with_context(|| format!("cannot read the journal {}", path.display()))?;
-        if got == 0 || !raw.ends_with('\n') {
+        if got == 0 || !self.raw.ends_with('\n') {
             return Ok(None);
         }
-        n += 1;
-        whole += got as u64;
-        raw.pop();
-        Ok(Some(n))
-    };
-    if next(&mut raw)?.is_none() {
-        bail!("{}: empty, or its header cut short", at(1));
+        self.n += 1;
+        self.whole += got as u64;
+        self.raw.pop();
+        Ok(Some((self.n, &self.raw)))
     }
+}
+
+/// Rebuilds the world `path` journals, to its last journaled frame, and opens the journal
+/// to go on appending. `opts` gives what the journal does not (network, rates, ...).
+///
+/// Two passes: the first rebuilds the world; the second reads again only the last
+/// [`REMEMBER_FOR`] of frames and remembers their answered ids, as old as they were when
+/// the server stopped (an id older than that would be forgotten by now). The answers are
+/// made after the world, so when they are forgotten their memory goes back whole, not as
+/// holes between the world's.
+pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
+    let open = || {
+        File::open(path).with_context(|| format!("cannot open the journal {}", path.display()))
+    };
+    let at = |n: usize| format!("journal {} line {n}", path.display());
+    let mut lines = Lines::new(BufReader::new(open()?), 1);
+    let Some((_, raw)) = lines.next(path)? else {
+        bail!("{}: empty, or its header cut short", at(1));
+    };
     let header: Header =
-        serde_json::from_str(&raw).with_context(|| format!("{}: not a journal header", at(1)))?;
+        serde_json::from_str(raw).with_context(|| format!("{}: not a journal header", at(1)))?;
     if header.journal != VERSION {
         bail!(
             "{}: journal version {} (this server reads {VERSION})",
@@ -223,9 +252,19 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     opts.world = header.world.clone();
     let mut host = Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
         .with_context(|| format!("{}: the journal's scene", at(1)))?;
-    let mut answered = Answered::default();
-    while let Some(n) = next(&mut raw)? {
-        let line: Line = serde_json::from_str(&raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
+    // Where the lines of a frame start (byte offset, line number), about once a second of
+    // frames, only as far back as the window of remembered ids: the second pass starts at
+    // the last mark before the window.
+    let dt = host.world.config.dt;
+    let window = (REMEMBER_FOR.as_secs_f64() / dt).ceil() as u64;
+    let mark_every = ((1.0 / dt).round() as u64).max(1);
+    let mut marks: VecDeque<(u64, u64, usize)> =
+        VecDeque::with_capacity((window / mark_every + 3) as usize);
+    // The `step`s with ids whose steps had not all run (line, due at step): answered when
+    // they have.
+    let mut running: Vec<(usize, u64)> = Vec::new();
+    while let Some((n, raw)) = lines.next(path)? {
+        let line: Line = serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
         match line {
             Line::At { at: frame } => {
                 host.step();
@@ -240,15 +279,25 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                         host.world.frame()
                     );
                 }
+                running.retain(|&(_, due)| due > host.steps_run);
+                if frame % mark_every == 0 {
+                    // The lines after this one act at this frame's boundary or later.
+                    while marks.len() >= 2 && marks[1].0 + window <= frame {
+                        marks.pop_front();
+                    }
+                    if marks.len() == marks.capacity() {
+                        marks.pop_front();
+                    }
+                    marks.push_back((frame, lines.whole, n + 1));
+                }
             }
             Line::Command {
                 frame,
                 command,
                 reply,
-                sender,
                 id,
+                ..
             } => {
-                let mut due_at_step = 0;
                 if reply.ok {
                     check_frame(&host, frame, &at(n))?;
                     let handled = host.handle(&command);
@@ -259,27 +308,73 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                             handled.reply.error.unwrap_or_default()
                         );
                     }
-                    due_at_step = handled.due_at_step;
-                }
-                if let Some(id) = id {
-                    answered.remember(sender, id, Answer::new(&reply, due_at_step));
+                    if id.is_some() && handled.due_at_step > host.steps_run {
+                        running.push((n, handled.due_at_step));
+                    }
                 }
             }
-            Line::Scene {
-                frame,
-                scene,
-                reply,
-                sender,
-                id,
-            } => {
+            Line::Scene { frame, scene, .. } => {
                 check_frame(&host, frame, &at(n))?;
                 host.adopt_scene(scene.text, scene.name)
                     .map_err(|e| anyhow!("{}: the loaded scene: {e}", at(n)))?;
-                if let Some(id) = id {
-                    answered.remember(sender, id, Answer::new(&reply, 0));
-                }
             }
         }
+    }
+    let whole = lines.whole;
+    drop(lines);
+
+    // The second pass: the answers of the window.
+    let last = host.world.frame();
+    let (from, below, first) = match marks.front() {
+        Some(&(frame, offset, n)) if frame + window <= last => (frame, offset, n),
+        _ => (0, 0, 1),
+    };
+    let mut file = open()?;
+    file.seek(SeekFrom::Start(below))?;
+    let mut lines = Lines::new(BufReader::new(file).take(whole - below), first);
+    if below == 0 {
+        lines.next(path)?; // the header
+    }
+    let now = Instant::now();
+    let mut answered = Answered::default();
+    while let Some((n, raw)) = lines.next(path)? {
+        let (frame, reply, sender, id, due_at_step) = match serde_json::from_str(raw)
+            .map_err(|e| anyhow!("{}: {e}", at(n)))?
+        {
+            Line::Command {
+                frame,
+                reply,
+                sender,
+                id: Some(id),
+                ..
+            } => {
+                // A `step` still running when the server stopped is answered once its steps
+                // have run.
+                let due = running
+                    .iter()
+                    .find(|&&(line, _)| line == n)
+                    .map_or(0, |&(_, due)| due);
+                (frame, reply, sender, id, due)
+            }
+            Line::Scene {
+                frame,
+                reply,
+                sender,
+                id: Some(id),
+                ..
+            } => (frame, reply, sender, id, 0),
+            _ => continue,
+        };
+        if frame < from {
+            continue;
+        }
+        let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
+        answered.remember_at(
+            sender,
+            id,
+            Answer::new(&reply, due_at_step),
+            now.checked_sub(age).unwrap_or(now),
+        );
     }
     // What the server counts from here is what it does live, not the replay.
     host.health = Default::default();
@@ -399,5 +494,63 @@ mod tests {
         std::fs::write(&path, "").unwrap();
         let error = format!("{:#}", resume(&path, &options()).err().unwrap());
         assert!(error.contains("line 1: empty"), "{error}");
+    }
+
+    #[test]
+    fn a_resume_remembers_the_ids_of_its_last_seconds_as_old_as_they_were() {
+        use ricochet_protocol::command::{Action, Direction, ServerCommand};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let opts = options();
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/scenes/bounce.toml");
+        let text = std::fs::read_to_string(scene).unwrap();
+        let mut host = Hosted::load(text, PathBuf::from(scene), &opts).unwrap();
+        let mut journal = Journal::create(&path, "journaled", &host, &opts).unwrap();
+        let window = (REMEMBER_FOR.as_secs_f64() / host.world.config.dt).ceil() as u64;
+        let sender: Sender = Some("peer".into());
+        let press = Command::World(Action::Press {
+            dir: Direction::Left,
+        });
+        let end = window + 300;
+        let mut step_due = 0;
+        for _ in 0..end {
+            let frame = host.world.frame();
+            let id = match frame {
+                10 => Some("old"),
+                f if f == end - 100 => Some("new"),
+                _ => None,
+            };
+            if let Some(id) = id {
+                let reply = host.handle(&press).reply;
+                journal.handled(&press, &reply, &sender, &Some(id.into()), &host);
+            }
+            if frame == end - 50 {
+                let step = Command::Server(ServerCommand::Step { n: 1000 });
+                let handled = host.handle(&step);
+                step_due = handled.due_at_step;
+                journal.handled(&step, &handled.reply, &sender, &Some("steps".into()), &host);
+            }
+            host.step();
+            if host.pending_steps > 0 {
+                host.pending_steps -= 1;
+                host.steps_run += 1;
+            }
+            journal.stepped(host.world.frame());
+        }
+        drop(journal);
+        let resumed = resume(&path, &options()).unwrap();
+        assert_eq!(resumed.host.steps_run, host.steps_run);
+        let answered = &resumed.answered;
+        assert!(
+            answered.get(&sender, "old").is_none(),
+            "older than REMEMBER_FOR when the server stopped"
+        );
+        let new = answered.get(&sender, "new").expect("remembered");
+        assert_eq!(new.due_at_step, 0);
+        assert!(answered.get(&None, "new").is_none(), "per sender");
+        let steps = answered.get(&sender, "steps").expect("remembered");
+        assert!(step_due > resumed.host.steps_run);
+        assert_eq!(steps.due_at_step, step_due, "still running: due when its steps have run");
+        assert_eq!(answered.len(), 2);
     }
 }

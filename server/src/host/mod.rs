@@ -145,6 +145,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 journal = %path.display(),
                 world = %resumed.world,
                 frame = resumed.host.world.frame(),
+                remembered_ids = resumed.answered.len(),
                 "resumed the world from its journal"
             );
             (
@@ -518,6 +519,13 @@ fn give_back_memory() {
     // SAFETY: malloc_trim only releases free memory of the allocator's own heaps.
     unsafe {
         libc::malloc_trim(0);
+        let heap = libc::mallinfo2();
+        tracing::debug!(
+            in_use_kib = heap.uordblks / 1024,
+            free_kib = heap.fordblks / 1024,
+            mapped_kib = heap.hblkhd / 1024,
+            "heap after a trim"
+        );
     }
 }
 
