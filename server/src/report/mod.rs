@@ -2,11 +2,13 @@
 //! (tables, CSV, charts) flow out. Nothing here is on the server's hot path.
 //!
 //! - [`bench`]: what a step costs, per case and setting;
-//! - [`tradeoff`]: what each solver setting costs and buys in accuracy;
+//! - [`tradeoff`]: what each solver setting costs and buys in accuracy, on shipped scenes;
+//! - [`scene_tradeoff`]: the same on any scene, against a converged reference;
 //! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
 //! - [`splice`]: how a run writes its table into a hand-written page.
 
 pub mod bench;
+pub mod scene_tradeoff;
 pub mod soak;
 pub mod tradeoff;
 

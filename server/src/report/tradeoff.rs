@@ -351,18 +351,29 @@ pub fn on_front(cell: &Cell, cells: &[Cell]) -> bool {
 /// Where the chart's font is looked for (Debian's fonts-dejavu-core).
 pub const FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
+/// Registers [`FONT`] as the charts' sans-serif (once; later calls do nothing).
+pub fn register_font() -> anyhow::Result<()> {
+    static REGISTERED: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
+    REGISTERED
+        .get_or_init(|| {
+            let font = std::fs::read(FONT).map_err(|e| {
+                format!("the chart needs the font {FONT} (Debian: fonts-dejavu-core): {e}")
+            })?;
+            plotters::style::register_font(
+                "sans-serif",
+                plotters::style::FontStyle::Normal,
+                Box::leak(font.into_boxed_slice()),
+            )
+            .map_err(|_| format!("{FONT} is not a usable font"))
+        })
+        .clone()
+        .map_err(|e| anyhow::anyhow!(e))
+}
+
 /// Draws time against error per scene, the front in red, as a PNG.
 pub fn chart(cells: &[Cell], path: &std::path::Path) -> anyhow::Result<()> {
     use plotters::prelude::*;
-    let font = std::fs::read(FONT).map_err(|e| {
-        anyhow::anyhow!("the chart needs the font {FONT} (Debian: fonts-dejavu-core): {e}")
-    })?;
-    plotters::style::register_font(
-        "sans-serif",
-        FontStyle::Normal,
-        Box::leak(font.into_boxed_slice()),
-    )
-    .map_err(|_| anyhow::anyhow!("{FONT} is not a usable font"))?;
+    register_font()?;
     let names: Vec<String> = settings().into_iter().map(|s| s.name).collect();
     let root = BitMapBackend::new(path, (1500, 950)).into_drawing_area();
     root.fill(&WHITE)?;

@@ -123,10 +123,16 @@ pub enum Command {
     ///
     /// Runs the matrix of scenes x solver settings and writes DIR/tradeoff.csv and
     /// DIR/tradeoff.png (time against error, the front in red). Use a release build.
+    ///
+    /// With --scene FILE: measures that scene (any scene, yours included) under each
+    /// candidate setting and under a converged reference, prints a table and with --out
+    /// writes DIR/<scene>.csv, DIR/<scene>.png and DIR/<scene>.md.
     Tradeoff {
         /// Where to write the report.
         #[arg(long, default_value = "docs/tradeoff")]
         out: PathBuf,
+        #[command(flatten)]
+        scene: SceneTradeoffArgs,
     },
     /// Soak a real server on loopback and measure it (figures, not pass/fail).
     ///
@@ -233,4 +239,33 @@ pub struct SimulateArgs {
     /// Lower or raise a limit of the world, as for `run` (docs/security.md). Repeatable.
     #[arg(long = "limit", value_name = "NAME=VALUE")]
     pub limit: Vec<String>,
+}
+
+/// `tradeoff --scene`: the trade measured on one scene.
+#[derive(clap::Args)]
+pub struct SceneTradeoffArgs {
+    /// The scene to measure (TOML). Without it, the built-in report of shipped scenes.
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
+    /// Steps of each run.
+    #[arg(long, default_value_t = 300, requires = "scene")]
+    pub steps: u64,
+    /// Actions to apply, as `simulate --inputs` takes them.
+    #[arg(long, requires = "scene")]
+    pub inputs: Option<PathBuf>,
+    /// A setting to measure instead of the default matrix: `[world]` overrides separated
+    /// by `;`, e.g. --candidate "solver=impulses;impulse_iterations=8". Repeatable.
+    #[arg(long = "candidate", value_name = "SETS", requires = "scene")]
+    pub candidates: Vec<String>,
+    /// The reference is converged when two refinements agree within this many of the
+    /// scene's length units (its median dynamic body size), worst body position
+    /// difference over the run.
+    #[arg(long, default_value_t = 1e-6, requires = "scene")]
+    pub tolerance: f64,
+    /// Refinements of the reference at most (each doubles sub-steps and passes).
+    #[arg(long, default_value_t = 4, requires = "scene")]
+    pub max_refinements: u32,
+    /// Seconds the reference may take in all.
+    #[arg(long, default_value_t = 300.0, requires = "scene")]
+    pub reference_budget: f64,
 }
