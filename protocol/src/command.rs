@@ -251,6 +251,10 @@ pub struct WorldInfo {
     /// How the server is coping: what it took, refused and dropped since it started.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub health: Option<Health>,
+    /// The setting the server picked for the scene's accuracy target, and why (absent
+    /// without a target).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<String>,
 }
 
 /// A server's counts since it started (the `health` of [`WorldInfo`]).

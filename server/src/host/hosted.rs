@@ -46,6 +46,8 @@ pub struct Hosted {
     scenes_dir: PathBuf,
     limits: Limits,
     pub health: Health,
+    /// The setting picked for the scene's accuracy target, and why.
+    pub accuracy: Option<String>,
 }
 
 /// What handling a command did.
@@ -80,6 +82,7 @@ impl Hosted {
             scenes_dir: opts.scenes_dir.clone(),
             limits: opts.limits.clone(),
             health: Health::default(),
+            accuracy: None,
         })
     }
 
@@ -104,6 +107,7 @@ impl Hosted {
             groups: self.world.group_names().map(str::to_string).collect(),
             generation: self.generation,
             health: Some(self.health.clone()),
+            accuracy: self.accuracy.clone(),
         }
     }
 

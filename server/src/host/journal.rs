@@ -435,6 +435,8 @@ mod tests {
             inbox: InboxLimits::default(),
             journal: None,
             resume: None,
+            accuracy: None,
+            accuracy_cache: None,
         }
     }
 

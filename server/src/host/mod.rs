@@ -95,6 +95,12 @@ pub struct HostOptions {
     pub journal: Option<PathBuf>,
     /// Rebuild the world from this journal, then go on appending to it.
     pub resume: Option<PathBuf>,
+    /// Run the scene under the cheapest measured setting whose worst position error meets
+    /// this (scene units); the scene's `[world] accuracy` if not given ([`crate::accuracy`]).
+    pub accuracy: Option<f64>,
+    /// Where measures for accuracy targets are cached (the default cache directory if
+    /// not given).
+    pub accuracy_cache: Option<PathBuf>,
 }
 
 /// The server's zenoh configuration: the network's, with the receive size bounded to what
@@ -162,7 +168,27 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 .ok_or_else(|| anyhow!("a scene, or a journal to resume, is needed"))?;
             let text = std::fs::read_to_string(scene)
                 .with_context(|| format!("cannot read scene {}", scene.display()))?;
-            let host = Hosted::load(text, scene.clone(), &opts)?;
+            let mut opts = opts.clone();
+            let picked = crate::accuracy::for_scene(
+                scene,
+                &text,
+                &opts.overrides,
+                opts.accuracy,
+                opts.accuracy_cache.as_deref(),
+            )?;
+            if let Some(pick) = &picked {
+                tracing::info!("{}", pick.reason());
+                // Journaled with the rest of the overrides: a resume needs no measure.
+                opts.overrides = pick
+                    .candidate
+                    .overrides
+                    .iter()
+                    .chain(&opts.overrides)
+                    .cloned()
+                    .collect();
+            }
+            let mut host = Hosted::load(text, scene.clone(), &opts)?;
+            host.accuracy = picked.map(|p| p.reason());
             let journal = match &opts.journal {
                 Some(path) => Some(Journal::create(path, &opts.world, &host, &opts)?),
                 None => None,

@@ -169,6 +169,8 @@ pub struct Subject {
     pub text: String,
     pub steps: u64,
     pub inputs: Vec<TimedAction>,
+    /// Overrides every run makes after the candidate's (the user's `--set`: theirs win).
+    pub base: Vec<String>,
 }
 
 impl Subject {
@@ -180,6 +182,7 @@ impl Subject {
             text,
             steps,
             inputs,
+            base: Vec::new(),
         };
         subject.world(&[])?;
         Ok(subject)
@@ -190,7 +193,8 @@ impl Subject {
         // Measuring is local work on the user's own scene: the ceiling on a step's cost
         // that protects a server from its peers does not apply.
         let limits = Limits::default();
-        Ok(scene::parse_with(&self.text, &self.path, overrides, &limits)?)
+        let all: Vec<String> = overrides.iter().chain(&self.base).cloned().collect();
+        Ok(scene::parse_with(&self.text, &self.path, &all, &limits)?)
     }
 
     /// The scene's length unit: the median size (larger side, or diameter) of its dynamic
@@ -227,7 +231,8 @@ pub struct Run {
     /// (frame, positions) every `particle_every` frames.
     pub particles: Vec<(u64, Vec<[f32; 2]>)>,
     pub ms: Vec<f64>,
-    /// Solver passes times contacts summed over the run: the work the solver did, counted.
+    /// Solver passes times contacts, plus sub-steps times dynamic bodies, summed over the
+    /// run: the work the step did, counted (the same on any machine).
     pub work: u64,
     pub deepest_penetration: f64,
     pub worst_energy_change: f64,
@@ -287,7 +292,8 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
         w.step();
         run.ms.push(t.elapsed().as_secs_f64() * 1e3);
         let s = w.stats();
-        run.work += s.relaxation_iterations.max(1) * s.contacts;
+        run.work += s.relaxation_iterations.max(1) * s.contacts
+            + u64::from(w.config.substeps) * run.dynamic.len() as u64;
         run.features.contacts |= s.contacts > 0;
         run.deepest_penetration = run.deepest_penetration.max(s.deepest_penetration);
         if !acted {

@@ -136,6 +136,13 @@ pub struct WorldConfig {
     pub sleep_speed: f64,
     /// Seconds at rest before an island sleeps.
     pub sleep_delay: f64,
+    /// The accuracy the scene asks for instead of solver knobs: the worst position error
+    /// of its dynamic bodies over a measured run against a converged reference, in scene
+    /// units. The engine does not read it: `ricochet-server run` and `simulate` measure the
+    /// scene under candidate settings and run it under the cheapest that meets it
+    /// (docs/tradeoff/README.md).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub accuracy: Option<f64>,
 }
 
 impl Default for WorldConfig {
@@ -166,6 +173,7 @@ impl Default for WorldConfig {
             sleeping: false,
             sleep_speed: 0.05,
             sleep_delay: 0.5,
+            accuracy: None,
         }
     }
 }
@@ -327,6 +335,17 @@ impl WorldConfig {
                     name,
                     format!(
                         "{v} must be a number from 0 to {:e}",
+                        crate::dynamics::body::MAX_COORDINATE
+                    ),
+                ));
+            }
+        }
+        if let Some(a) = self.accuracy {
+            if !(a.is_finite() && a > 0.0 && a <= crate::dynamics::body::MAX_COORDINATE) {
+                return Err(invalid(
+                    "accuracy",
+                    format!(
+                        "{a} must be above 0 and at most {:e} (scene units)",
                         crate::dynamics::body::MAX_COORDINATE
                     ),
                 ));

@@ -78,6 +78,16 @@ pub struct RunArgs {
     /// overrides and limits; --scene, --world, --set and --limit are not needed.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
+    /// Run the scene under the cheapest setting whose worst position error meets TOL
+    /// (scene units), measured on the scene at start-up against a converged reference
+    /// (bounded: 120 steps, 20 s for the reference) or read from the cache; overrides the
+    /// scene's `[world] accuracy`. The log says what was picked and why.
+    #[arg(long, value_name = "TOL")]
+    pub accuracy: Option<f64>,
+    /// Where accuracy measures are cached, keyed by the scene's content
+    /// (default: ~/.cache/ricochet/accuracy).
+    #[arg(long, value_name = "DIR")]
+    pub accuracy_cache: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -239,6 +249,16 @@ pub struct SimulateArgs {
     /// Lower or raise a limit of the world, as for `run` (docs/security.md). Repeatable.
     #[arg(long = "limit", value_name = "NAME=VALUE")]
     pub limit: Vec<String>,
+    /// Run the scene under the cheapest setting whose worst position error meets TOL
+    /// (scene units), measured on the scene at start-up against a converged reference
+    /// (bounded: 120 steps, 20 s for the reference) or read from the cache; overrides the
+    /// scene's `[world] accuracy`. The log says what was picked and why.
+    #[arg(long, value_name = "TOL")]
+    pub accuracy: Option<f64>,
+    /// Where accuracy measures are cached, keyed by the scene's content
+    /// (default: ~/.cache/ricochet/accuracy).
+    #[arg(long, value_name = "DIR")]
+    pub accuracy_cache: Option<PathBuf>,
 }
 
 /// `tradeoff --scene`: the trade measured on one scene.

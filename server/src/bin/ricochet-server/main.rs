@@ -45,6 +45,8 @@ fn main() -> Result<()> {
             queue,
             journal,
             resume,
+            accuracy,
+            accuracy_cache,
         }) => {
             host::without_thread_caches();
             for (flag, value) in [
@@ -92,6 +94,8 @@ fn main() -> Result<()> {
                 },
                 journal,
                 resume,
+                accuracy,
+                accuracy_cache,
             })
         }
         Command::Bench {
@@ -346,6 +350,8 @@ fn simulate(args: SimulateArgs) -> Result<()> {
         wire_stats,
         keyframe_interval,
         limit,
+        accuracy,
+        accuracy_cache,
     } = args;
     let limits = Limits::default().with(&limit)?;
     let (scene_path, dump_path, stats_path, inputs) = (
@@ -360,6 +366,16 @@ fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let text = std::fs::read_to_string(scene_path)
         .with_context(|| format!("cannot read scene {}", scene_path.display()))?;
+    if let Some(pick) = ricochet_server::accuracy::for_scene(
+        scene_path,
+        &text,
+        &overrides,
+        accuracy,
+        accuracy_cache.as_deref(),
+    )? {
+        eprintln!("{}", pick.reason());
+        overrides = pick.candidate.overrides.iter().chain(&overrides).cloned().collect();
+    }
     let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)?;
     let inputs = match inputs {
         Some(p) => read_inputs(p)?,
