@@ -381,3 +381,31 @@ fn the_info_key_gives_the_scene_its_bounds_and_groups_and_changes_on_load() {
     assert_eq!(loaded.scene, "bounds.toml");
     assert!(loaded.generation > info.generation);
 }
+
+#[test]
+fn a_server_given_an_accuracy_target_runs_the_setting_it_picked_and_says_why() {
+    // The bounce (restitution 1): only exact flight keeps its height within 0.01.
+    let cache = tempfile::tempdir().unwrap();
+    let cache_dir = cache.path().to_str().unwrap();
+    let server = Server::start(
+        "bounce.toml",
+        "accuracy",
+        &["--accuracy", "0.01", "--accuracy-cache", cache_dir],
+    );
+    let info = server.client().info(TIMEOUT).expect("info");
+    let why = info.accuracy.expect("the pick, in the info reply");
+    assert!(why.starts_with("accuracy 1e-2: `"), "{why}");
+    assert!(why.contains("exact flight"), "{why}");
+    assert!(why.contains("measured at start-up"), "{why}");
+    // A second server on the same scene and target reads the measure the first cached.
+    let again = Server::start(
+        "bounce.toml",
+        "accuracy-again",
+        &["--accuracy", "0.01", "--accuracy-cache", cache_dir],
+    );
+    let why_again = again.client().info(TIMEOUT).unwrap().accuracy.unwrap();
+    assert!(why_again.contains("cached measure"), "{why_again}");
+    // Without a target, nothing is picked.
+    let plain = Server::start("bounce.toml", "no-accuracy", &[]);
+    assert_eq!(plain.client().info(TIMEOUT).unwrap().accuracy, None);
+}
