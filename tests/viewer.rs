@@ -136,6 +136,8 @@ fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
         "/stats/contacts",
         "/stats/relaxation_iterations",
         "/stats/deepest_penetration",
+        "/stats/energy_change",
+        "/stats/residual",
         "/stats/kinetic_energy",
         "/stats/particles",
         "/stats/bytes_per_frame",

@@ -27,8 +27,9 @@ COLOR_SCALE = 63.75
 KIND_DELTA, KIND_KEY, KIND_STATICS = 0, 1, 2
 NEW, POS, VEL, COLLIDED, REMOVED = 0x01, 0x02, 0x04, 0x08, 0x10
 STATS = ("step_ms", "contacts", "relaxation_iterations", "deepest_penetration", "kinetic_energy",
-         "particle_contacts", "overruns", "dynamic_bodies", "particles", "emitters")
-STATS_FORMAT = "<fIIffIIIII"
+         "particle_contacts", "overruns", "dynamic_bodies", "particles", "emitters",
+         "energy_change", "residual")
+STATS_FORMAT = "<fIIffIIIIIff"
 
 
 class DecodeError(Exception):
@@ -87,8 +88,8 @@ class FrameDecoder:
         if bytes(r.take(3)) != b"RCF":
             raise DecodeError("no RCF magic")
         version, kind = r.unpack("<BB")
-        if version != 1:
-            raise DecodeError(f"frame version {version}, this reader knows 1")
+        if version != 2:
+            raise DecodeError(f"frame version {version}, this reader knows 2")
         frame, t = r.unpack("<Qd")
         stats = dict(zip(STATS, r.unpack(STATS_FORMAT)))
         if kind == KIND_DELTA and self.synced and frame <= self.frame:

@@ -70,6 +70,12 @@ pub struct StatsRecord {
     pub particle_contacts: u64,
     /// Bodies asleep after the step.
     pub sleeping: u64,
+    /// Mechanical energy change of the dynamic bodies over the step.
+    #[serde(default)]
+    pub energy_change: f64,
+    /// What the solver's last pass still corrected, as a distance.
+    #[serde(default)]
+    pub residual: f64,
 }
 
 impl FrameRecord {

@@ -23,5 +23,5 @@ pub mod client;
 #[cfg(feature = "client")]
 pub mod net;
 
-/// The protocol's version: the frame layout's version byte and the `v` of key expressions.
-pub const PROTOCOL_VERSION: u8 = 1;
+/// The protocol's version: the frame layout's version byte.
+pub const PROTOCOL_VERSION: u8 = 2;

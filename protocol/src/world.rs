@@ -75,6 +75,8 @@ pub fn encode_frame(
         dynamic_bodies: bodies.len() as u32,
         particles: p.len() as u32,
         emitters: emitters.len() as u32,
+        energy_change: stats.energy_change as f32,
+        residual: stats.residual as f32,
     };
     let particles = ParticlesIn {
         id: &p.id,
@@ -145,5 +147,7 @@ pub fn stats_record(world: &World) -> StatsRecord {
         kinetic_energy: s.kinetic_energy,
         particle_contacts: s.particle_contacts,
         sleeping: s.sleeping,
+        energy_change: s.energy_change,
+        residual: s.residual,
     }
 }

@@ -14,7 +14,7 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use crate::report::scene_tradeoff::{measure, Candidate, Options, Subject};
+use crate::report::scene_tradeoff::{judged_error, measure, Candidate, Options, Subject};
 
 /// Steps of the measuring run, and the time the reference may take: start-up stays
 /// bounded.
@@ -29,6 +29,8 @@ const CACHE_VERSION: u32 = 1;
 pub struct Measured {
     pub name: String,
     pub overrides: Vec<String>,
+    /// The worst position error over the run of anything that moves (bodies and
+    /// particles), against the reference.
     pub worst_error: f64,
     pub work: u64,
     pub ms_median: f64,
@@ -195,7 +197,7 @@ pub fn pick(subject: &Subject, target: f64, cache: Option<&Path>) -> Result<Pick
             .map(|r| Measured {
                 name: r.name.clone(),
                 overrides: r.overrides.clone(),
-                worst_error: r.worst_error,
+                worst_error: judged_error(r),
                 work: r.work,
                 ms_median: r.ms_median,
                 nan: r.nan,

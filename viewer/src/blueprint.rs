@@ -20,11 +20,15 @@ use rerun::{RecordingStream, RecordingStreamBuilder, RecordingStreamResult};
 use crate::draw;
 
 /// The plots: entity path under `stats/`, title.
-pub const PLOTS: [(&str, &str); 7] = [
+/// Next to the step time, the live accuracy estimates (no reference needed): deepest
+/// penetration, energy change per step, the solver's residual, passes actually run.
+pub const PLOTS: [(&str, &str); 9] = [
     ("step_ms", "step time (ms)"),
     ("contacts", "contacts"),
-    ("relaxation_iterations", "relaxation iterations"),
+    ("relaxation_iterations", "solver passes run"),
     ("deepest_penetration", "deepest penetration"),
+    ("energy_change", "energy change per step"),
+    ("residual", "solver residual (units)"),
     ("kinetic_energy", "kinetic energy"),
     ("particles", "particles"),
     ("bytes_per_frame", "bytes per frame"),

@@ -84,6 +84,14 @@ impl WorldSink {
                 .with_colors([color(draw::BOUNDS)])
                 .with_radii([Radius::new_ui_points(LINE_RADIUS)]),
         )?;
+        let new_pick = self.info.as_ref().is_none_or(|old| old.accuracy != info.accuracy);
+        if let (true, Some(why)) = (new_pick, &info.accuracy) {
+            // What the server picked for the scene's accuracy target, and why.
+            self.rec.log(
+                "events",
+                &TextLog::new(format!("server setting: {why}")).with_level(TextLogLevel::INFO),
+            )?;
+        }
         self.info = Some(info);
         Ok(())
     }
@@ -116,6 +124,8 @@ impl WorldSink {
             stats.contacts as f64,
             stats.relaxation_iterations as f64,
             stats.deepest_penetration as f64,
+            stats.energy_change as f64,
+            stats.residual as f64,
             stats.kinetic_energy as f64,
             stats.particles as f64,
             bytes as f64,

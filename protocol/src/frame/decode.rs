@@ -61,6 +61,8 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
         dynamic_bodies: r.u32()?,
         particles: r.u32()?,
         emitters: r.u32()?,
+        energy_change: r.f32()?,
+        residual: r.f32()?,
     };
     Ok(Header {
         kind,

@@ -40,6 +40,8 @@ fn put_header(out: &mut Vec<u8>, kind: u8, frame: u64, time: f64, s: &FrameStats
         s.dynamic_bodies,
         s.particles,
         s.emitters,
+        s.energy_change.to_bits(),
+        s.residual.to_bits(),
     ] {
         out.extend_from_slice(&v.to_le_bytes());
     }

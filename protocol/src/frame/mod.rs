@@ -11,17 +11,18 @@
 //! frames: they are in the snapshot, fetched with a query and re-published when they
 //! change.
 //!
-//! # Layout, version 1 (all numbers little-endian)
+//! # Layout, version 2 (all numbers little-endian)
 //!
 //! ```text
 //! magic      3 bytes  "RCF"
-//! version    u8       1
+//! version    u8       2
 //! kind       u8       0 delta, 1 key frame, 2 statics snapshot
 //! frame      u64      steps taken
 //! time       f64      simulated seconds
-//! stats      10 x 4 bytes: step_ms f32, contacts u32, relaxation_iterations u32,
+//! stats      12 x 4 bytes: step_ms f32, contacts u32, relaxation_iterations u32,
 //!                     deepest_penetration f32, kinetic_energy f32, particle_contacts u32,
-//!                     overruns u32, dynamic_bodies u32, particles u32, emitters u32
+//!                     overruns u32, dynamic_bodies u32, particles u32, emitters u32,
+//!                     energy_change f32, residual f32 (version 2)
 //! emitters   varint n, then n x (x f32, y f32, remaining varint)
 //! bodies     varint n, then n body records, in increasing key order
 //! particles  varint n, then n particle records, in increasing id order
@@ -86,7 +87,7 @@ const COLLIDED: u8 = 0x08;
 const REMOVED: u8 = 0x10;
 
 /// Header bytes before the sections.
-pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 40;
+pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 48;
 
 /// The figures of the step that produced a frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -103,6 +104,12 @@ pub struct FrameStats {
     pub dynamic_bodies: u32,
     pub particles: u32,
     pub emitters: u32,
+    /// The bodies' mechanical energy change over the step (kinetic plus potential, actions
+    /// between steps included): an accuracy estimate that needs no reference.
+    pub energy_change: f32,
+    /// What the solver's last pass still corrected, as a distance (units): near 0, the
+    /// passes converged.
+    pub residual: f32,
 }
 
 /// A body as the encoder reads it from the world.

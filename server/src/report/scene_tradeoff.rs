@@ -563,11 +563,11 @@ pub fn measure(
         let r = r.as_ref().unwrap_or(&own);
         let mut ms = r.ms.clone();
         ms.sort_by(f64::total_cmp);
-        let (worst, rms) = body_error(r, &reference.run);
         let floor = |e: f64| if e.is_nan() { e } else { e.max(resolution) };
+        let (worst, rms) = body_error(r, &reference.run);
         let (particle_error, mismatch) = if features.particles {
             let (w, rms, unmatched) = particle_error(r, &reference.run);
-            (Some((w, rms)), unmatched)
+            (Some((floor(w), floor(rms))), unmatched)
         } else {
             (None, 0)
         };
@@ -601,12 +601,13 @@ pub fn measure(
     })
 }
 
-/// The error a row is judged by: the bodies' worst position error, or the particles'
-/// where the scene has no dynamic bodies.
+/// The error a row is judged by (the front, the chart, accuracy targets): the worst
+/// position error over the run of anything that moves, bodies and particles alike.
 pub fn judged_error(row: &Row) -> f64 {
     match row.particle_error {
-        Some((worst, _)) if row.worst_error.is_nan() || row.worst_error == 0.0 => worst,
-        _ => row.worst_error,
+        Some((worst, _)) if row.worst_error.is_nan() || worst.is_nan() => f64::NAN,
+        Some((worst, _)) => row.worst_error.max(worst),
+        None => row.worst_error,
     }
 }
 
@@ -811,6 +812,47 @@ impl Report {
         root.present()?;
         Ok(())
     }
+}
+
+/// One line per scene: what it holds, how far its reference is to be trusted, and the
+/// ends of its front (the fastest setting on it, and the most accurate).
+pub fn index(pages: &[(String, Report)]) -> String {
+    let mut out = String::from(
+        "| scene | bodies (dynamic / static) | holds | reference agrees to | fastest on the front | most accurate on the front |\n|---|---|---|---|---|---|\n",
+    );
+    for (page, r) in pages {
+        let front: Vec<&Row> = r.rows.iter().filter(|row| row.on_front).collect();
+        let fastest = front.iter().min_by(|a, b| a.ms_median.total_cmp(&b.ms_median));
+        let finest = front
+            .iter()
+            .min_by(|a, b| judged_error(a).total_cmp(&judged_error(b)));
+        let cell = |row: Option<&&Row>| {
+            row.map_or("none".to_string(), |row| {
+                format!("{}: {:.4} ms, {:.1e}", row.name, row.ms_median, judged_error(row))
+            })
+        };
+        let holds = [
+            (r.features.contacts, "contacts"),
+            (r.features.particles, "particles"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, what)| *what)
+        .collect::<Vec<_>>()
+        .join(", ");
+        out += &format!(
+            "| [{}]({page}) | {} / {} | {} | {:.1e}{} | {} | {} |\n",
+            r.scene.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+            r.features.dynamic,
+            r.features.statics,
+            if holds.is_empty() { "flight only".into() } else { holds },
+            r.reference.agreement,
+            if r.reference.converged { "" } else { " (not converged)" },
+            cell(fastest),
+            cell(finest),
+        );
+    }
+    out
 }
 
 #[cfg(test)]

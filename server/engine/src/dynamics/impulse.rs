@@ -196,6 +196,9 @@ pub struct ImpulseReport {
     /// Velocity passes run over the contacts (biased and relax, every sub-step): counted
     /// as they run, not derived from the settings.
     pub passes: u64,
+    /// The largest normal velocity change of the last pass times the sub-step (see
+    /// [`crate::world::StepStats::residual`]).
+    pub residual: f64,
 }
 
 /// No place among the solver's bodies.
@@ -382,19 +385,17 @@ pub fn solve_frame(
                 }
             }
         }
+        let last_step = step + 1 == substeps;
         for k in 0..params.iterations {
             // Split impulses start from nothing each sub-step.
             let fresh = params.split_impulses && k == 0;
             report.passes += 1;
-            solve_pass(
-                sb,
-                contacts,
-                push,
-                push_fixed,
-                inv_h,
-                params.split_impulses,
-                fresh,
-            );
+            let args = (push, push_fixed, inv_h, params.split_impulses, fresh);
+            if last_step && params.relax_iterations == 0 && k + 1 == params.iterations {
+                report.residual = solve_pass::<true>(sb, contacts, args) * h;
+            } else {
+                solve_pass::<false>(sb, contacts, args);
+            }
         }
         if params.exact_flight {
             pushed.clear();
@@ -419,9 +420,14 @@ pub fn solve_frame(
                 body.pseudo = DVec2::ZERO;
             }
         }
-        for _ in 0..params.relax_iterations {
+        for k in 0..params.relax_iterations {
             report.passes += 1;
-            solve_pass(sb, contacts, Bias::NONE, Bias::NONE, inv_h, false, false);
+            let args = (Bias::NONE, Bias::NONE, inv_h, false, false);
+            if last_step && k + 1 == params.relax_iterations {
+                report.residual = solve_pass::<true>(sb, contacts, args) * h;
+            } else {
+                solve_pass::<false>(sb, contacts, args);
+            }
         }
         // Restitution, once, for contacts that pushed: after the move, the normal velocity
         // becomes the bounce of the approach speed the contact was found with (as Box2D
@@ -471,17 +477,18 @@ pub fn solve_frame(
 }
 
 /// One velocity pass over every contact: the normal impulse that brings the normal
-/// velocity to its target (never pulling), then friction within the Coulomb cone.
+/// velocity to its target (never pulling), then friction within the Coulomb cone. With
+/// `MEASURE`, returns the largest normal velocity change it made (0 otherwise).
+/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses,
+/// and whether the split impulses start from nothing.
 #[inline]
-fn solve_pass(
+fn solve_pass<const MEASURE: bool>(
     sb: &mut [SolverBody],
     contacts: &mut [Contact],
-    push: Bias,
-    push_fixed: Bias,
-    inv_h: f64,
-    split: bool,
-    fresh: bool,
-) {
+    args: (Bias, Bias, f64, bool, bool),
+) -> f64 {
+    let (push, push_fixed, inv_h, split, fresh) = args;
+    let mut largest: f64 = 0.0;
     for c in contacts.iter_mut() {
         if fresh {
             c.pseudo_impulse = 0.0;
@@ -535,7 +542,11 @@ fn solve_pass(
         let p = c.normal * dn + t * dt_imp;
         sb[a].vel -= p * ba.inv_mass;
         sb[b].vel += p * bb.inv_mass;
+        if MEASURE && c.mass > 0.0 {
+            largest = largest.max(dn.abs() / c.mass);
+        }
     }
+    largest
 }
 
 fn apply(sb: &mut [SolverBody], c: &Contact, impulse: DVec2) {

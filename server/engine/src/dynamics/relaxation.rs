@@ -69,6 +69,8 @@ pub struct RelaxationReport {
     pub iterations: u32,
     /// The deepest penetration detected.
     pub deepest: f64,
+    /// The deepest penetration the last pass found (0 when it found none).
+    pub residual: f64,
 }
 
 /// Two distinct elements of a slice, both mutable.
@@ -138,12 +140,14 @@ fn relax_passes<I: Iterator<Item = (u32, u32)>>(
     for _ in 0..params.iterations.max(1) {
         report.iterations += 1;
         let mut any = false;
+        report.residual = 0.0;
         for (i, j) in pairs() {
             let (i, j) = (i as usize, j as usize);
             if let Some(info) = detect(bodies, i, j) {
                 any = true;
                 report.contacts += 1;
                 report.deepest = report.deepest.max(info.depth);
+                report.residual = report.residual.max(info.depth);
                 let (a, b) = pair_mut(bodies, i, j);
                 let sunk = params.impact.map(|g| Sunk {
                     depth: info.depth,
@@ -426,7 +430,8 @@ mod tests {
             RelaxationReport {
                 contacts: 0,
                 iterations: 1,
-                deepest: 0.0
+                deepest: 0.0,
+                residual: 0.0
             }
         );
     }

@@ -24,6 +24,10 @@ impl World {
     /// resolve), then the particles move and meet the shapes where they ended.
     pub fn step(&mut self) {
         let mut stats = StepStats::default();
+        let energy_before = match self.last_energy {
+            Some(e) => e,
+            None => self.mechanical_energy(),
+        };
         for &i in &self.flagged {
             self.bodies[i as usize].collided = false;
         }
@@ -73,6 +77,9 @@ impl World {
         }
         stats.sleeping = self.sleeping;
         stats.kinetic_energy = self.kinetic_energy();
+        stats.energy = self.mechanical_energy();
+        stats.energy_change = stats.energy - energy_before;
+        self.last_energy = Some(stats.energy);
         self.stats = stats;
         self.frame += 1;
     }
@@ -213,6 +220,7 @@ impl World {
                     stats.contacts += report.contacts;
                     stats.relaxation_iterations += report.iterations as u64;
                     stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+                    stats.residual = stats.residual.max(report.residual);
                 }
                 (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g))
                     if particles =>
@@ -359,6 +367,7 @@ impl World {
         stats.contacts += report.contacts;
         stats.relaxation_iterations += report.passes;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+        stats.residual = stats.residual.max(report.residual);
         self.pairs = all;
     }
 

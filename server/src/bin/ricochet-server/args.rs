@@ -264,13 +264,14 @@ pub struct SimulateArgs {
 /// `tradeoff --scene`: the trade measured on one scene.
 #[derive(clap::Args)]
 pub struct SceneTradeoffArgs {
-    /// The scene to measure (TOML). Without it, the built-in report of shipped scenes.
-    #[arg(long)]
-    pub scene: Option<PathBuf>,
+    /// The scenes to measure (TOML), each on its own (`--scene a.toml b.toml`). Without
+    /// any, the built-in report of shipped scenes.
+    #[arg(long, num_args = 1..)]
+    pub scene: Vec<PathBuf>,
     /// Steps of each run.
     #[arg(long, default_value_t = 300, requires = "scene")]
     pub steps: u64,
-    /// Actions to apply, as `simulate --inputs` takes them.
+    /// Actions to apply, as `simulate --inputs` takes them (one scene only).
     #[arg(long, requires = "scene")]
     pub inputs: Option<PathBuf>,
     /// A setting to measure instead of the default matrix: `[world]` overrides separated
