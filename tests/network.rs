@@ -409,3 +409,42 @@ fn a_server_given_an_accuracy_target_runs_the_setting_it_picked_and_says_why() {
     let plain = Server::start("bounce.toml", "no-accuracy", &[]);
     assert_eq!(plain.client().info(TIMEOUT).unwrap().accuracy, None);
 }
+
+#[test]
+fn a_set_solver_knob_shows_in_the_next_frames_figures() {
+    let server = Server::start(
+        "pyramid-10.toml",
+        "live-figures",
+        &["--set", "solver=impulses", "--set", "impulse_iterations=2"],
+    );
+    let client = server.client();
+    let frames = client.frames().unwrap();
+    let header = |frames: &ricochet_protocol::client::FrameStream| {
+        let sample = frames
+            .recv_timeout(TIMEOUT)
+            .expect("frames")
+            .expect("a frame");
+        ricochet_protocol::frame::peek_header(&sample.payload().to_bytes()).expect("a header")
+    };
+    let before = header(&frames).stats;
+    assert_eq!(before.relaxation_iterations, 2, "{before:?}");
+    assert!(before.residual.is_finite() && before.energy_change.is_finite());
+    let reply = client
+        .request_raw(
+            br#"{"do":"set","name":"impulse_iterations","value":24}"#.to_vec(),
+            TIMEOUT,
+        )
+        .unwrap();
+    assert!(reply.ok, "{reply:?}");
+    // The set took effect at the boundary after frame `reply.frame`: the next frame's
+    // figures show it (at 60 frames a second, a sixtieth of a second later).
+    let began = Instant::now();
+    loop {
+        assert!(began.elapsed() < TIMEOUT, "no frame after the set");
+        let h = header(&frames);
+        if h.frame > reply.frame {
+            assert_eq!(h.stats.relaxation_iterations, 24, "frame {}: {:?}", h.frame, h.stats);
+            break;
+        }
+    }
+}

@@ -157,6 +157,7 @@ pub fn for_scene(
         steps: MEASURE_STEPS,
         inputs: Vec::new(),
         base: overrides.to_vec(),
+        closed_form: None,
     };
     let Some(target) = flag.or(subject.world(&[])?.config.accuracy) else {
         return Ok(None);

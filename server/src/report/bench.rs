@@ -143,6 +143,20 @@ fn pyramid_settings() -> Vec<(String, Vec<String>)> {
     ]
 }
 
+/// The stack under both solvers, and under impulses with sleeping on: next to the
+/// stack's variants with features it does not use (particle interactions without
+/// particles, a group of statics nothing interacts with), whose cost must be the stack's.
+fn feature_settings() -> Vec<(String, Vec<String>)> {
+    vec![
+        ("shipped (relaxation 15)".to_string(), Vec::new()),
+        ("impulses".into(), set(&["solver=impulses"])),
+        (
+            "impulses, sleeping on".into(),
+            set(&["solver=impulses", "sleeping=true"]),
+        ),
+    ]
+}
+
 /// Every case, in the order the report lists them. `pyramid` replaces the pyramid's
 /// settings (`--set`), `steps` its step count.
 pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
@@ -184,6 +198,27 @@ pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
             warmup: 0,
             steps: 600,
             settings: platform_settings(),
+            figure: Figure::None,
+        },
+        Case {
+            scene: "stack-20.toml",
+            warmup: 0,
+            steps: 600,
+            settings: feature_settings(),
+            figure: Figure::None,
+        },
+        Case {
+            scene: "bench/stack-20-particle-interactions.toml",
+            warmup: 0,
+            steps: 600,
+            settings: feature_settings(),
+            figure: Figure::None,
+        },
+        Case {
+            scene: "bench/stack-20-unused-statics.toml",
+            warmup: 0,
+            steps: 600,
+            settings: feature_settings(),
             figure: Figure::None,
         },
     ]

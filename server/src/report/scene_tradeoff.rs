@@ -162,6 +162,30 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
     out
 }
 
+/// A closed form a scene's run can be checked against, besides the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ClosedForm {
+    /// The first dynamic body flies under its constant acceleration:
+    /// `p0 + v0 t + a t² / 2` (the projectile).
+    Flight,
+    /// The first dynamic body keeps its velocity: `p0 + v0 t` (a frictionless slide).
+    Coast,
+    /// The bodies keep their energy (restitution 1): the error is the worst relative
+    /// energy change over the run.
+    Energy,
+}
+
+impl ClosedForm {
+    /// What the closed-form error measures, for tables.
+    pub fn measure(self) -> &'static str {
+        match self {
+            ClosedForm::Flight => "position against p0 + v0 t + a t²/2, worst over the run (units)",
+            ClosedForm::Coast => "position against p0 + v0 t, worst over the run (units)",
+            ClosedForm::Energy => "relative energy change, worst over the run",
+        }
+    }
+}
+
 /// A scene to measure: its text, where it came from, the steps to run and the inputs.
 #[derive(Clone, Debug)]
 pub struct Subject {
@@ -171,6 +195,8 @@ pub struct Subject {
     pub inputs: Vec<TimedAction>,
     /// Overrides every run makes after the candidate's (the user's `--set`: theirs win).
     pub base: Vec<String>,
+    /// The scene's closed form, if it has one.
+    pub closed_form: Option<ClosedForm>,
 }
 
 impl Subject {
@@ -183,6 +209,7 @@ impl Subject {
             steps,
             inputs,
             base: Vec::new(),
+            closed_form: None,
         };
         subject.world(&[])?;
         Ok(subject)
@@ -348,6 +375,8 @@ pub struct Row {
     pub particle_error: Option<(f64, f64)>,
     /// Particles present in one run but not the other at a sampled frame.
     pub particle_count_mismatch: u64,
+    /// The error against the scene's closed form ([`ClosedForm`]), if it has one.
+    pub closed_form_error: Option<f64>,
     pub nan: bool,
     pub on_front: bool,
 }
@@ -384,6 +413,38 @@ fn particle_error(a: &Run, b: &Run) -> (f64, f64, u64) {
         }
     }
     (worst, if n > 0 { (sum / n as f64).sqrt() } else { 0.0 }, unmatched)
+}
+
+/// A run's error against the scene's closed form.
+pub fn closed_form_error(subject: &Subject, form: ClosedForm, run: &Run) -> f64 {
+    if form == ClosedForm::Energy {
+        return run.worst_energy_change;
+    }
+    let Ok(w) = subject.world(&[]) else {
+        return f64::NAN;
+    };
+    let Some(&first) = run.dynamic.first() else {
+        return f64::NAN;
+    };
+    let b = &w.bodies()[first];
+    let a = match form {
+        ClosedForm::Flight => ricochet_engine::dynamics::integrate::acceleration_under(
+            b,
+            w.config.gravity,
+            w.config.mass_scaled_acceleration,
+        ),
+        _ => DVec2::ZERO,
+    };
+    let (p0, v0, dt, n) = (b.pos, b.vel, w.config.dt, run.dynamic.len());
+    run.bodies
+        .iter()
+        .step_by(n)
+        .enumerate()
+        .map(|(k, p)| {
+            let t = (k + 1) as f64 * dt;
+            (*p - (p0 + v0 * t + a * (0.5 * t * t))).length()
+        })
+        .fold(0.0, f64::max)
 }
 
 fn percentile(sorted: &[f64], q: f64) -> f64 {
@@ -583,6 +644,7 @@ pub fn measure(
             worst_energy_change: r.worst_energy_change,
             particle_error,
             particle_count_mismatch: mismatch,
+            closed_form_error: subject.closed_form.map(|f| closed_form_error(subject, f, r)),
             nan: r.nan,
             on_front: false,
         });

@@ -109,26 +109,39 @@ fn main() -> Result<()> {
         Command::Tradeoff { out, .. } => {
             std::fs::create_dir_all(&out)
                 .with_context(|| format!("cannot create {}", out.display()))?;
-            let cells = tradeoff::run_matrix();
+            let progress = indicatif::ProgressBar::new(0);
+            progress.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{prefix}: {bar:40} {pos}/{len} steps, eta {eta}: {msg}",
+                )
+                .expect("the template is valid"),
+            );
+            let (cells, references) = tradeoff::run_all(&progress)?;
+            progress.finish_and_clear();
             std::fs::write(out.join("tradeoff.csv"), tradeoff::to_csv(&cells))?;
             tradeoff::chart(&cells, &out.join("tradeoff.png"))?;
             for c in &cells {
                 println!(
-                    "{:<11} {:<38} {:>9.4} ms  error {:>10.3e}  deepest {:>9.2e}  energy {:>+9.2e}{}{}",
-                    c.scene, c.setting, c.ms_per_step, c.error, c.deepest_penetration, c.energy_drift,
+                    "{:<11} {:<34} {:>9.5} ms  error {:>10.3e}  reference {:>9.2e}  energy {:>9.2e}{}{}",
+                    c.scene, c.setting, c.ms_per_step, c.error, c.reference_error, c.energy_drift,
                     if c.nan { "  NaN" } else { "" },
                     if tradeoff::on_front(c, &cells) { "  front" } else { "" }
                 );
             }
             let readme = out.join("README.md");
             if readme.exists() {
+                let references: String = references
+                    .iter()
+                    .map(|(scene, line)| format!("- {scene}: {line}\n"))
+                    .collect();
                 report::splice(
                     &readme,
                     "tradeoff",
                     &format!(
-                        "Measured by `ricochet-server tradeoff --out {}` on {}.\n\n{}",
+                        "Measured by `ricochet-server tradeoff --out {}` on {}.\n\n{}\n{}",
                         out.display(),
                         report::machine(),
+                        references,
                         tradeoff::to_markdown(&cells)
                     ),
                 )?;
