@@ -17,6 +17,7 @@ pub mod action;
 pub mod behavior;
 pub mod dynamics;
 pub mod geometry;
+pub mod parallel;
 pub mod particles;
 pub mod scene;
 pub mod world;

@@ -103,6 +103,10 @@ fn pyramid_settings() -> Vec<(String, Vec<String>)> {
             Vec::new(),
         ),
         (
+            "shipped, 2 threads (the rigid solver runs on one)".into(),
+            set(&["threads=2"]),
+        ),
+        (
             "shipped, settled: 200 passes before the first step".into(),
             set(&["settle_iterations=200"]),
         ),
@@ -160,7 +164,12 @@ fn feature_settings() -> Vec<(String, Vec<String>)> {
 /// Every case, in the order the report lists them. `pyramid` replaces the pyramid's
 /// settings (`--set`), `steps` its step count.
 pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
-    let shipped = || vec![("shipped".to_string(), Vec::new())];
+    let threaded = || {
+        vec![
+            ("shipped".to_string(), Vec::new()),
+            ("2 threads".to_string(), set(&["threads=2"])),
+        ]
+    };
     vec![
         Case {
             scene: "pyramid-100.toml",
@@ -176,14 +185,14 @@ pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
             scene: "bench/particles-100k-shapes.toml",
             warmup: 150,
             steps: 50,
-            settings: shipped(),
+            settings: threaded(),
             figure: Figure::NsPerParticle,
         },
         Case {
             scene: "bench/particles-1m-free.toml",
             warmup: 150,
             steps: 20,
-            settings: shipped(),
+            settings: threaded(),
             figure: Figure::NsPerParticle,
         },
         Case {

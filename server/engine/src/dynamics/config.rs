@@ -63,6 +63,8 @@ pub const DEFAULT_RELAXATION_ITERATIONS: u32 = 15;
 pub const DT_RANGE: std::ops::RangeInclusive<f64> = 1e-5..=1.0;
 /// Solver passes one step may run at most, all sub-steps together.
 pub const MAX_PASSES_PER_STEP: u64 = 100_000;
+/// Threads a world may step on at most.
+pub const MAX_THREADS: u32 = 64;
 /// The largest acceleration component a world accepts (units/s²).
 pub const MAX_ACCELERATION: f64 = 1e9;
 
@@ -136,6 +138,10 @@ pub struct WorldConfig {
     pub sleep_speed: f64,
     /// Seconds at rest before an island sleeps.
     pub sleep_delay: f64,
+    /// Threads a step may use (1: the calling thread only). The particle passes (motion,
+    /// and meeting the shapes) are split among them; the results are the same bits
+    /// whatever the count (each particle is its own work). The rigid solvers run on one.
+    pub threads: u32,
     /// The accuracy the scene asks for instead of solver knobs: the worst position error
     /// of its dynamic bodies over a measured run against a converged reference, in scene
     /// units. The engine does not read it: `ricochet-server run` and `simulate` measure the
@@ -173,6 +179,7 @@ impl Default for WorldConfig {
             sleeping: false,
             sleep_speed: 0.05,
             sleep_delay: 0.5,
+            threads: 1,
             accuracy: None,
         }
     }
@@ -339,6 +346,12 @@ impl WorldConfig {
                     ),
                 ));
             }
+        }
+        if !(1..=MAX_THREADS).contains(&self.threads) {
+            return Err(invalid(
+                "threads",
+                format!("{} must be 1 to {MAX_THREADS}", self.threads),
+            ));
         }
         if let Some(a) = self.accuracy {
             if !(a.is_finite() && a > 0.0 && a <= crate::dynamics::body::MAX_COORDINATE) {

@@ -94,6 +94,7 @@ settings! {
     Sleeping(bool) => sleeping,
     SleepSpeed(f64) => sleep_speed,
     SleepDelay(f64) => sleep_delay,
+    Threads(u32) => threads,
 }
 
 impl WorldConfig {

@@ -9,7 +9,7 @@
 
 use glam::Vec2;
 
-use super::system::Particles;
+use super::system::{circle_on, rect_on, Particles};
 
 /// A shape as the particle projection reads it (32-bit, as particles are).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -173,27 +173,59 @@ impl Particles {
     /// Projects every particle out of the grid's shapes, in shape order. Returns how many
     /// projections were made.
     pub fn project_out_of_grid(&mut self, grid: &ShapeGrid) -> u64 {
-        let mut moved = 0;
-        for i in 0..self.len() {
-            let mut p = Vec2::new(self.x[i], self.y[i]);
-            let mut next = 0u32;
-            'again: loop {
-                for &k in grid.near(p) {
-                    if k < next {
-                        continue;
-                    }
-                    if let Some(q) = grid.shapes[k as usize].project(p) {
-                        p = q;
-                        moved += 1;
-                        next = k + 1;
-                        continue 'again;
-                    }
-                }
-                break;
-            }
-            self.x[i] = p.x;
-            self.y[i] = p.y;
-        }
-        moved
+        self.project_out_of_grid_on(grid, 1)
     }
+
+    /// [`Particles::project_out_of_grid`] split among `threads` (the same bits).
+    pub fn project_out_of_grid_on(&mut self, grid: &ShapeGrid, threads: u32) -> u64 {
+        let chunks = self.position_chunks(threads);
+        crate::parallel::run(threads, chunks, |(x, y)| grid_on(x, y, grid))
+            .into_iter()
+            .sum()
+    }
+
+    /// Projects every particle out of each of `shapes` in turn (the chapter's order: shape
+    /// after shape over every particle), split among `threads` (the same bits: each
+    /// particle meets the shapes in the same order). Returns how many projections were
+    /// made.
+    pub fn project_out_of_shapes_on(&mut self, shapes: &[ParticleShape], threads: u32) -> u64 {
+        let chunks = self.position_chunks(threads);
+        crate::parallel::run(threads, chunks, |(x, y)| {
+            shapes
+                .iter()
+                .map(|s| match *s {
+                    ParticleShape::Rect { centre, half } => rect_on(x, y, centre, half),
+                    ParticleShape::Circle { centre, radius } => circle_on(x, y, centre, radius),
+                })
+                .sum::<u64>()
+        })
+        .into_iter()
+        .sum()
+    }
+}
+
+/// [`Particles::project_out_of_grid`] on positions `x`, `y`.
+fn grid_on(x: &mut [f32], y: &mut [f32], grid: &ShapeGrid) -> u64 {
+    let mut moved = 0;
+    for i in 0..x.len() {
+        let mut p = Vec2::new(x[i], y[i]);
+        let mut next = 0u32;
+        'again: loop {
+            for &k in grid.near(p) {
+                if k < next {
+                    continue;
+                }
+                if let Some(q) = grid.shapes[k as usize].project(p) {
+                    p = q;
+                    moved += 1;
+                    next = k + 1;
+                    continue 'again;
+                }
+            }
+            break;
+        }
+        x[i] = p.x;
+        y[i] = p.y;
+    }
+    moved
 }

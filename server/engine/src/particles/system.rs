@@ -213,34 +213,48 @@ impl Particles {
     /// `v += a dt; v *= drag; p += v dt`, one update of life used, size scaled. Then the
     /// expired (life below 0) are removed, keeping the order of the rest.
     pub fn update(&mut self, dt: f32) {
+        self.update_on(dt, 1);
+    }
+
+    /// [`Particles::update`] split among `threads` (the same bits for any count: each
+    /// particle is its own work).
+    pub fn update_on(&mut self, dt: f32, threads: u32) {
         let n = self.len();
-        let (x, y, vx, vy) = (
-            &mut self.x[..n],
-            &mut self.y[..n],
-            &mut self.vx[..n],
-            &mut self.vy[..n],
-        );
-        let (ax, ay, drag) = (&self.ax[..n], &self.ay[..n], &self.drag[..n]);
-        for i in 0..n {
-            let nvx = (vx[i] + ax[i] * dt) * drag[i];
-            let nvy = (vy[i] + ay[i] * dt) * drag[i];
-            vx[i] = nvx;
-            vy[i] = nvy;
-            x[i] += nvx * dt;
-            y[i] += nvy * dt;
-        }
-        let (life, size, size_delta) = (
-            &mut self.life[..n],
-            &mut self.size[..n],
-            &self.size_delta[..n],
-        );
-        let mut any_expired = false;
-        for i in 0..n {
-            life[i] -= 1.0;
-            size[i] *= size_delta[i];
-            any_expired |= life[i] < 0.0;
-        }
-        if any_expired {
+        let (_, size) = crate::parallel::chunking(threads, n);
+        let chunks: Vec<_> = self.x[..n]
+            .chunks_mut(size)
+            .zip(self.y[..n].chunks_mut(size))
+            .zip(self.vx[..n].chunks_mut(size))
+            .zip(self.vy[..n].chunks_mut(size))
+            .zip(self.life[..n].chunks_mut(size))
+            .zip(self.size[..n].chunks_mut(size))
+            .zip(self.ax[..n].chunks(size))
+            .zip(self.ay[..n].chunks(size))
+            .zip(self.drag[..n].chunks(size))
+            .zip(self.size_delta[..n].chunks(size))
+            .map(|(((((((((x, y), vx), vy), life), sz), ax), ay), drag), sd)| {
+                (x, y, vx, vy, life, sz, ax, ay, drag, sd)
+            })
+            .collect();
+        let expired = crate::parallel::run(threads, chunks, |chunk| {
+            let (x, y, vx, vy, life, size, ax, ay, drag, size_delta) = chunk;
+            for i in 0..x.len() {
+                let nvx = (vx[i] + ax[i] * dt) * drag[i];
+                let nvy = (vy[i] + ay[i] * dt) * drag[i];
+                vx[i] = nvx;
+                vy[i] = nvy;
+                x[i] += nvx * dt;
+                y[i] += nvy * dt;
+            }
+            let mut any_expired = false;
+            for i in 0..life.len() {
+                life[i] -= 1.0;
+                size[i] *= size_delta[i];
+                any_expired |= life[i] < 0.0;
+            }
+            any_expired
+        });
+        if expired.into_iter().any(|e| e) {
             self.remove_expired();
         }
     }
@@ -280,47 +294,69 @@ impl Particles {
     /// The chapter measured the distance to the right and top sides only; here all four
     /// sides are considered, as for circles against rectangles.
     pub fn project_out_of_rect(&mut self, centre: Vec2, half: Vec2) -> u64 {
-        let (min, max) = (centre - half, centre + half);
-        let mut moved = 0;
-        for i in 0..self.len() {
-            let (px, py) = (self.x[i], self.y[i]);
-            if px > min.x && px < max.x && py > min.y && py < max.y {
-                let (dx, dy) = (px - centre.x, py - centre.y);
-                let to_x = half.x - dx.abs();
-                let to_y = half.y - dy.abs();
-                if to_x < to_y {
-                    self.x[i] = if dx < 0.0 { min.x } else { max.x };
-                } else {
-                    self.y[i] = if dy < 0.0 { min.y } else { max.y };
-                }
-                moved += 1;
-            }
-        }
-        moved
+        let n = self.len();
+        rect_on(&mut self.x[..n], &mut self.y[..n], centre, half)
     }
 
     /// Projects every particle inside the circle out to its boundary ("resolveCirclePos").
     /// A particle exactly at the centre goes out along +y instead of dividing by zero.
     pub fn project_out_of_circle(&mut self, centre: Vec2, radius: f32) -> u64 {
-        let r_sq = radius * radius;
-        let mut moved = 0;
-        for i in 0..self.len() {
-            let (dx, dy) = (self.x[i] - centre.x, self.y[i] - centre.y);
-            let d_sq = dx * dx + dy * dy;
-            if d_sq < r_sq {
-                let dist = d_sq.sqrt();
-                let (nx, ny) = if dist > 0.0 {
-                    (dx / dist, dy / dist)
-                } else {
-                    (0.0, 1.0)
-                };
-                self.x[i] = centre.x + nx * radius;
-                self.y[i] = centre.y + ny * radius;
-                moved += 1;
-            }
-        }
-        moved
+        let n = self.len();
+        circle_on(&mut self.x[..n], &mut self.y[..n], centre, radius)
     }
+
+    /// The particles' positions split for `threads`, in order (see [`crate::parallel`]).
+    pub(crate) fn position_chunks(&mut self, threads: u32) -> Vec<(&mut [f32], &mut [f32])> {
+        let n = self.len();
+        let (_, size) = crate::parallel::chunking(threads, n);
+        self.x[..n]
+            .chunks_mut(size)
+            .zip(self.y[..n].chunks_mut(size))
+            .collect()
+    }
+}
+
+/// [`Particles::project_out_of_rect`] on positions `x`, `y`.
+pub(crate) fn rect_on(x: &mut [f32], y: &mut [f32], centre: Vec2, half: Vec2) -> u64 {
+    let (min, max) = (centre - half, centre + half);
+    let mut moved = 0;
+    for i in 0..x.len() {
+        let (px, py) = (x[i], y[i]);
+        if px > min.x && px < max.x && py > min.y && py < max.y {
+            let (dx, dy) = (px - centre.x, py - centre.y);
+            let to_x = half.x - dx.abs();
+            let to_y = half.y - dy.abs();
+            if to_x < to_y {
+                x[i] = if dx < 0.0 { min.x } else { max.x };
+            } else {
+                y[i] = if dy < 0.0 { min.y } else { max.y };
+            }
+            moved += 1;
+        }
+    }
+    moved
+}
+
+/// [`Particles::project_out_of_circle`] on positions `x`, `y`.
+pub(crate) fn circle_on(x: &mut [f32], y: &mut [f32], centre: Vec2, radius: f32) -> u64 {
+    let r_sq = radius * radius;
+    let mut moved = 0;
+    for i in 0..x.len() {
+        let (dx, dy) = (x[i] - centre.x, y[i] - centre.y);
+        let d_sq = dx * dx + dy * dy;
+        if d_sq < r_sq {
+            let dist = d_sq.sqrt();
+            let (nx, ny) = if dist > 0.0 {
+                (dx / dist, dy / dist)
+            } else {
+                (0.0, 1.0)
+            };
+            x[i] = centre.x + nx * radius;
+            y[i] = centre.y + ny * radius;
+            moved += 1;
+        }
+    }
+    moved
 }
 
 #[cfg(test)]

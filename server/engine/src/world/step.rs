@@ -161,7 +161,8 @@ impl World {
     /// Moves every particle, removing the expired, then emits.
     pub(super) fn move_particles(&mut self) {
         if !self.particles.is_empty() {
-            self.particles.update(self.config.dt as f32);
+            self.particles
+                .update_on(self.config.dt as f32, self.config.threads);
         }
         self.run_emitters();
     }
@@ -253,19 +254,10 @@ impl World {
                     } else {
                         None
                     };
+                    let threads = self.config.threads;
                     stats.particle_contacts += match grid {
-                        Some(grid) => self.particles.project_out_of_grid(&grid),
-                        None => shapes
-                            .iter()
-                            .map(|s| match *s {
-                                ParticleShape::Rect { centre, half } => {
-                                    self.particles.project_out_of_rect(centre, half)
-                                }
-                                ParticleShape::Circle { centre, radius } => {
-                                    self.particles.project_out_of_circle(centre, radius)
-                                }
-                            })
-                            .sum(),
+                        Some(grid) => self.particles.project_out_of_grid_on(&grid, threads),
+                        None => self.particles.project_out_of_shapes_on(&shapes, threads),
                     };
                 }
                 _ => {}
