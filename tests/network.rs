@@ -443,7 +443,11 @@ fn a_set_solver_knob_shows_in_the_next_frames_figures() {
         assert!(began.elapsed() < TIMEOUT, "no frame after the set");
         let h = header(&frames);
         if h.frame > reply.frame {
-            assert_eq!(h.stats.relaxation_iterations, 24, "frame {}: {:?}", h.frame, h.stats);
+            assert_eq!(
+                h.stats.relaxation_iterations, 24,
+                "frame {}: {:?}",
+                h.frame, h.stats
+            );
             break;
         }
     }

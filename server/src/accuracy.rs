@@ -66,7 +66,11 @@ impl Pick {
     /// Why this setting, in a sentence (for the log, the `info` reply and the viewer).
     pub fn reason(&self) -> String {
         let c = &self.candidate;
-        let how = if self.from_cache { "cached measure" } else { "measured at start-up" };
+        let how = if self.from_cache {
+            "cached measure"
+        } else {
+            "measured at start-up"
+        };
         if self.met {
             format!(
                 "accuracy {:e}: `{}` (worst position error {:.2e} over {} steps against {}; the cheapest of {} of {} candidates that meet it, solver work {}; {how})",
@@ -89,11 +93,16 @@ pub fn pick_from(measure: &Measure, target: f64, from_cache: bool) -> Option<Pic
         .iter()
         .filter(|c| !c.nan && c.worst_error.is_finite())
         .collect();
-    let meeting: Vec<&Measured> = ok.iter().copied().filter(|c| c.worst_error <= target).collect();
+    let meeting: Vec<&Measured> = ok
+        .iter()
+        .copied()
+        .filter(|c| c.worst_error <= target)
+        .collect();
     let (candidate, met) = match meeting.iter().copied().min_by_key(|c| c.work) {
         Some(c) => (c, true),
         None => (
-            *ok.iter().min_by(|a, b| a.worst_error.total_cmp(&b.worst_error))?,
+            *ok.iter()
+                .min_by(|a, b| a.worst_error.total_cmp(&b.worst_error))?,
             false,
         ),
     };
@@ -177,7 +186,9 @@ pub fn pick(subject: &Subject, target: f64, cache: Option<&Path>) -> Result<Pick
                         return Ok(p);
                     }
                 }
-                _ => tracing::warn!(file = %file.display(), "unreadable accuracy cache: measuring again"),
+                _ => {
+                    tracing::warn!(file = %file.display(), "unreadable accuracy cache: measuring again")
+                }
             }
         }
     }
@@ -185,8 +196,13 @@ pub fn pick(subject: &Subject, target: f64, cache: Option<&Path>) -> Result<Pick
         reference_budget: MEASURE_BUDGET_S,
         ..Options::default()
     };
-    let report = measure(subject, None::<Vec<Candidate>>, &opts, &indicatif::ProgressBar::hidden())
-        .context("measuring the scene for its accuracy target")?;
+    let report = measure(
+        subject,
+        None::<Vec<Candidate>>,
+        &opts,
+        &indicatif::ProgressBar::hidden(),
+    )
+    .context("measuring the scene for its accuracy target")?;
     let m = Measure {
         version: CACHE_VERSION,
         steps: subject.steps,
@@ -210,7 +226,9 @@ pub fn pick(subject: &Subject, target: f64, cache: Option<&Path>) -> Result<Pick
         let written = file
             .parent()
             .map_or(Ok(()), std::fs::create_dir_all)
-            .and_then(|()| std::fs::write(file, serde_json::to_vec_pretty(&m).expect("serialises")));
+            .and_then(|()| {
+                std::fs::write(file, serde_json::to_vec_pretty(&m).expect("serialises"))
+            });
         if let Err(e) = written {
             tracing::warn!(file = %file.display(), "cannot cache the accuracy measure: {e}");
         }
@@ -248,9 +266,15 @@ mod tests {
             ],
         };
         assert_eq!(pick_from(&m, 0.5, false).unwrap().candidate.name, "coarse");
-        assert_eq!(pick_from(&m, 1e-2, false).unwrap().candidate.name, "finer but cheap");
+        assert_eq!(
+            pick_from(&m, 1e-2, false).unwrap().candidate.name,
+            "finer but cheap"
+        );
         let p = pick_from(&m, 1e-5, false).unwrap();
-        assert_eq!((p.candidate.name.as_str(), p.met, p.meeting), ("exact", true, 1));
+        assert_eq!(
+            (p.candidate.name.as_str(), p.met, p.meeting),
+            ("exact", true, 1)
+        );
         let p = pick_from(&m, 1e-9, false).unwrap();
         assert_eq!((p.candidate.name.as_str(), p.met), ("exact", false));
         assert!(p.reason().contains("met by none"), "{}", p.reason());
@@ -261,13 +285,24 @@ mod tests {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/pyramid-10.toml");
         let text = std::fs::read_to_string(&path).unwrap();
         let cache = tempfile::tempdir().unwrap();
-        let pick = |t| for_scene(&path, &text, &[], Some(t), Some(cache.path())).unwrap().unwrap();
+        let pick = |t| {
+            for_scene(&path, &text, &[], Some(t), Some(cache.path()))
+                .unwrap()
+                .unwrap()
+        };
         let loose = pick(1e-2);
         assert!(!loose.from_cache, "the first target measures");
         let tight = pick(1e-3);
-        assert!(tight.from_cache, "the second reads the measure the first cached");
+        assert!(
+            tight.from_cache,
+            "the second reads the measure the first cached"
+        );
         for p in [&loose, &tight] {
-            assert!(p.met && p.candidate.worst_error <= p.target, "{}", p.reason());
+            assert!(
+                p.met && p.candidate.worst_error <= p.target,
+                "{}",
+                p.reason()
+            );
         }
         assert_ne!(loose.candidate.name, tight.candidate.name);
         assert!(
@@ -277,25 +312,39 @@ mod tests {
             tight.reason()
         );
         // The user's own overrides are part of what was measured: another cache entry.
-        let theirs = for_scene(&path, &text, &["gravity=[0,-5]".into()], Some(1e-2), Some(cache.path()))
-            .unwrap()
-            .unwrap();
+        let theirs = for_scene(
+            &path,
+            &text,
+            &["gravity=[0,-5]".into()],
+            Some(1e-2),
+            Some(cache.path()),
+        )
+        .unwrap()
+        .unwrap();
         assert!(!theirs.from_cache);
         // The scene's own `[world] accuracy` is a target too; the flag overrides it.
         let declared = text.replacen("[world]", "[world]\naccuracy = 0.01", 1);
-        let own = for_scene(&path, &declared, &[], None, Some(cache.path())).unwrap().unwrap();
+        let own = for_scene(&path, &declared, &[], None, Some(cache.path()))
+            .unwrap()
+            .unwrap();
         assert_eq!(
             (own.target, &own.candidate.overrides),
             (1e-2, &loose.candidate.overrides)
         );
-        let flag = for_scene(&path, &declared, &[], Some(1e-3), Some(cache.path())).unwrap().unwrap();
+        let flag = for_scene(&path, &declared, &[], Some(1e-3), Some(cache.path()))
+            .unwrap()
+            .unwrap();
         assert_eq!(flag.candidate.overrides, tight.candidate.overrides);
         let bad = text.replacen("[world]", "[world]\naccuracy = -1", 1);
         let e = format!("{:#}", for_scene(&path, &bad, &[], None, None).unwrap_err());
         assert!(e.contains("accuracy"), "{e}");
         // A scene without a target picks nothing; a bad target is refused.
-        assert!(for_scene(&path, &text, &[], None, Some(cache.path())).unwrap().is_none());
-        let e = for_scene(&path, &text, &[], Some(-1.0), None).unwrap_err().to_string();
+        assert!(for_scene(&path, &text, &[], None, Some(cache.path()))
+            .unwrap()
+            .is_none());
+        let e = for_scene(&path, &text, &[], Some(-1.0), None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--accuracy -1"), "{e}");
     }
 }

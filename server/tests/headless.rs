@@ -319,7 +319,14 @@ b = "stairs"
     let out_dir = dir.path().join("out");
     let run = |extra: &[&str]| {
         Command::new(server_bin())
-            .args(["tradeoff", "--steps", "90", "--reference-budget", "60", "--scene"])
+            .args([
+                "tradeoff",
+                "--steps",
+                "90",
+                "--reference-budget",
+                "60",
+                "--scene",
+            ])
             .arg(&scene)
             .arg("--out")
             .arg(&out_dir)
@@ -329,9 +336,16 @@ b = "stairs"
             .unwrap()
     };
     let out = run(&[]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let table = String::from_utf8_lossy(&out.stdout);
-    assert!(table.contains("5 dynamic, 6 static bodies, contacts, particles"), "{table}");
+    assert!(
+        table.contains("5 dynamic, 6 static bodies, contacts, particles"),
+        "{table}"
+    );
     assert!(table.contains("Reference: impulses"), "{table}");
     let csv = std::fs::read_to_string(out_dir.join("stairs.csv")).unwrap();
     let rows: Vec<&str> = csv.lines().skip(1).collect();
@@ -354,6 +368,9 @@ b = "stairs"
     let out = run(&["--candidate", "solver=impulses;impulse_iterations=0"]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("candidate `solver=impulses, impulse_iterations=0`"), "{err}");
+    assert!(
+        err.contains("candidate `solver=impulses, impulse_iterations=0`"),
+        "{err}"
+    );
     assert!(err.contains("impulse_iterations"), "{err}");
 }

@@ -84,7 +84,10 @@ impl WorldSink {
                 .with_colors([color(draw::BOUNDS)])
                 .with_radii([Radius::new_ui_points(LINE_RADIUS)]),
         )?;
-        let new_pick = self.info.as_ref().is_none_or(|old| old.accuracy != info.accuracy);
+        let new_pick = self
+            .info
+            .as_ref()
+            .is_none_or(|old| old.accuracy != info.accuracy);
         if let (true, Some(why)) = (new_pick, &info.accuracy) {
             // What the server picked for the scene's accuracy target, and why.
             self.rec.log(

@@ -62,7 +62,11 @@ fn more_solver_passes_leave_a_smaller_residual() {
     assert!(many < few / 4.0, "32 passes {many:e}, 2 passes {few:e}");
     // With relax passes the last pass measured is a relax pass.
     let relaxed = mean_residual(
-        &["solver=impulses", "impulse_iterations=8", "relax_iterations=4"],
+        &[
+            "solver=impulses",
+            "impulse_iterations=8",
+            "relax_iterations=4",
+        ],
         60,
     );
     assert!(relaxed.is_finite());

@@ -55,7 +55,10 @@ fn every_shipped_scene_steps_to_the_same_bits_on_any_thread_count() {
     }
     // Scenes whose particle passes were split (when the machine has two cores or more).
     if ricochet_engine::parallel::effective(2) > 1 {
-        assert!(split >= 3, "only {split} scenes had particles enough to split");
+        assert!(
+            split >= 3,
+            "only {split} scenes had particles enough to split"
+        );
     }
 }
 

@@ -155,7 +155,8 @@ impl Answered {
 
     fn forget_at(&mut self, now: Instant) {
         while let Some(old) = self.order.front() {
-            if self.order.len() <= REMEMBERED && now.saturating_duration_since(old.at) < REMEMBER_FOR
+            if self.order.len() <= REMEMBERED
+                && now.saturating_duration_since(old.at) < REMEMBER_FOR
             {
                 break;
             }

@@ -19,11 +19,11 @@
 //! world, bit for bit, since the engine is deterministic; the resumed server then appends
 //! to the same journal.
 
-use std::fs::{File, OpenOptions};
 use std::collections::VecDeque;
+use std::fs::{File, OpenOptions};
 use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom, Write};
-use std::time::{Duration, Instant};
 use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use ricochet_engine::world::Limits;
@@ -226,9 +226,8 @@ impl<R: BufRead> Lines<R> {
 /// made after the world, so when they are forgotten their memory goes back whole, not as
 /// holes between the world's.
 pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
-    let open = || {
-        File::open(path).with_context(|| format!("cannot open the journal {}", path.display()))
-    };
+    let open =
+        || File::open(path).with_context(|| format!("cannot open the journal {}", path.display()));
     let at = |n: usize| format!("journal {} line {n}", path.display());
     let mut lines = Lines::new(BufReader::new(open()?), 1);
     let Some((_, raw)) = lines.next(path)? else {
@@ -338,33 +337,32 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     let now = Instant::now();
     let mut answered = Answered::default();
     while let Some((n, raw)) = lines.next(path)? {
-        let (frame, reply, sender, id, due_at_step) = match serde_json::from_str(raw)
-            .map_err(|e| anyhow!("{}: {e}", at(n)))?
-        {
-            Line::Command {
-                frame,
-                reply,
-                sender,
-                id: Some(id),
-                ..
-            } => {
-                // A `step` still running when the server stopped is answered once its steps
-                // have run.
-                let due = running
-                    .iter()
-                    .find(|&&(line, _)| line == n)
-                    .map_or(0, |&(_, due)| due);
-                (frame, reply, sender, id, due)
-            }
-            Line::Scene {
-                frame,
-                reply,
-                sender,
-                id: Some(id),
-                ..
-            } => (frame, reply, sender, id, 0),
-            _ => continue,
-        };
+        let (frame, reply, sender, id, due_at_step) =
+            match serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))? {
+                Line::Command {
+                    frame,
+                    reply,
+                    sender,
+                    id: Some(id),
+                    ..
+                } => {
+                    // A `step` still running when the server stopped is answered once its steps
+                    // have run.
+                    let due = running
+                        .iter()
+                        .find(|&&(line, _)| line == n)
+                        .map_or(0, |&(_, due)| due);
+                    (frame, reply, sender, id, due)
+                }
+                Line::Scene {
+                    frame,
+                    reply,
+                    sender,
+                    id: Some(id),
+                    ..
+                } => (frame, reply, sender, id, 0),
+                _ => continue,
+            };
         if frame < from {
             continue;
         }
@@ -552,7 +550,10 @@ mod tests {
         assert!(answered.get(&None, "new").is_none(), "per sender");
         let steps = answered.get(&sender, "steps").expect("remembered");
         assert!(step_due > resumed.host.steps_run);
-        assert_eq!(steps.due_at_step, step_due, "still running: due when its steps have run");
+        assert_eq!(
+            steps.due_at_step, step_due,
+            "still running: due when its steps have run"
+        );
         assert_eq!(answered.len(), 2);
     }
 }

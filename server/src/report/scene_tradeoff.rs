@@ -88,7 +88,10 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
         for integrator in ["symplectic", "explicit", "exact"] {
             for substeps in [1, 2, 4] {
                 out.push(Candidate {
-                    name: format!("{integrator}, {substeps} sub-step{}", if substeps > 1 { "s" } else { "" }),
+                    name: format!(
+                        "{integrator}, {substeps} sub-step{}",
+                        if substeps > 1 { "s" } else { "" }
+                    ),
                     overrides: vec![
                         format!("integrator={integrator}"),
                         format!("substeps={substeps}"),
@@ -102,16 +105,29 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
     for n in [5, 15, 50] {
         out.push(Candidate {
             name: format!("relaxation {n}"),
-            overrides: vec!["solver=relaxation".into(), relaxation(n), "substeps=1".into()],
+            overrides: vec![
+                "solver=relaxation".into(),
+                relaxation(n),
+                "substeps=1".into(),
+            ],
         });
     }
     out.push(c(
         "relaxation 15, 4 sub-steps",
-        &["solver=relaxation", "relaxation_iterations=15", "substeps=4"],
+        &[
+            "solver=relaxation",
+            "relaxation_iterations=15",
+            "substeps=4",
+        ],
     ));
     out.push(c(
         "relaxation 15, exact flight",
-        &["solver=relaxation", "relaxation_iterations=15", "substeps=1", "integrator=exact"],
+        &[
+            "solver=relaxation",
+            "relaxation_iterations=15",
+            "substeps=1",
+            "integrator=exact",
+        ],
     ));
     for n in [4, 8, 16] {
         out.push(Candidate {
@@ -125,17 +141,35 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
     }
     let impulses8 = ["solver=impulses", "impulse_iterations=8"];
     let with = |extra: &[&str]| -> Vec<String> {
-        impulses8.iter().chain(extra).map(|s| s.to_string()).collect()
+        impulses8
+            .iter()
+            .chain(extra)
+            .map(|s| s.to_string())
+            .collect()
     };
     for (name, extra) in [
         ("impulses 8 it, 2 sub-steps", &["substeps=2"][..]),
         ("impulses 8 it, 4 sub-steps", &["substeps=4"]),
-        ("impulses 8 it, split", &["substeps=1", "split_impulses=true"]),
-        ("impulses 8 it, exact flight", &["substeps=1", "integrator=exact"]),
-        ("impulses 8 it, no warm start", &["substeps=1", "warm_starting=false"]),
+        (
+            "impulses 8 it, split",
+            &["substeps=1", "split_impulses=true"],
+        ),
+        (
+            "impulses 8 it, exact flight",
+            &["substeps=1", "integrator=exact"],
+        ),
+        (
+            "impulses 8 it, no warm start",
+            &["substeps=1", "warm_starting=false"],
+        ),
         (
             "soft 1 it + 1 relax, 4 sub-steps",
-            &["impulse_iterations=1", "relax_iterations=1", "substeps=4", "contact_hertz=30"],
+            &[
+                "impulse_iterations=1",
+                "relax_iterations=1",
+                "substeps=4",
+                "contact_hertz=30",
+            ],
         ),
     ] {
         out.push(Candidate {
@@ -346,10 +380,8 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
             }
             if w.frame() % particle_every == 0 {
                 let ps = w.particles();
-                run.particles.push((
-                    w.frame(),
-                    (0..n).map(|i| ps.pos(i).to_array()).collect(),
-                ));
+                run.particles
+                    .push((w.frame(), (0..n).map(|i| ps.pos(i).to_array()).collect()));
             }
         }
         tick();
@@ -412,7 +444,11 @@ fn particle_error(a: &Run, b: &Run) -> (f64, f64, u64) {
             n += 1;
         }
     }
-    (worst, if n > 0 { (sum / n as f64).sqrt() } else { 0.0 }, unmatched)
+    (
+        worst,
+        if n > 0 { (sum / n as f64).sqrt() } else { 0.0 },
+        unmatched,
+    )
 }
 
 /// A run's error against the scene's closed form.
@@ -525,7 +561,11 @@ const TIMED_FOR_MS: f64 = 200.0;
 const MAX_REPEATS: u32 = 20;
 
 /// [`run`], repeated for its times while it is short.
-fn timed_run(subject: &Subject, overrides: &[String], progress: &indicatif::ProgressBar) -> Result<Run> {
+fn timed_run(
+    subject: &Subject,
+    overrides: &[String],
+    progress: &indicatif::ProgressBar,
+) -> Result<Run> {
     progress.inc_length(subject.steps);
     let mut r = run(subject, overrides, || progress.inc(1))?;
     let mut spent: f64 = r.ms.iter().sum();
@@ -644,7 +684,9 @@ pub fn measure(
             worst_energy_change: r.worst_energy_change,
             particle_error,
             particle_count_mismatch: mismatch,
-            closed_form_error: subject.closed_form.map(|f| closed_form_error(subject, f, r)),
+            closed_form_error: subject
+                .closed_form
+                .map(|f| closed_form_error(subject, f, r)),
             nan: r.nan,
             on_front: false,
         });
@@ -775,7 +817,13 @@ impl Report {
 
     /// A short table for the terminal.
     pub fn to_text(&self) -> String {
-        let width = self.rows.iter().map(|r| r.name.len()).max().unwrap_or(7).max(7);
+        let width = self
+            .rows
+            .iter()
+            .map(|r| r.name.len())
+            .max()
+            .unwrap_or(7)
+            .max(7);
         let mut out = format!(
             "{}: {} steps; {} dynamic, {} static bodies{}{}\n{}\n\n{:width$}  {:>10}  {:>10}  {:>10}  {:>10}  front\n",
             self.scene.display(),
@@ -848,7 +896,8 @@ impl Report {
             .x_labels(5)
             .label_style(("sans-serif", 12))
             .draw()?;
-        let mut front: Vec<(f64, f64)> = rows.iter().filter(|r| r.on_front).map(|r| at(r)).collect();
+        let mut front: Vec<(f64, f64)> =
+            rows.iter().filter(|r| r.on_front).map(|r| at(r)).collect();
         front.sort_by(|a, b| a.0.total_cmp(&b.0));
         chart.draw_series(LineSeries::new(front, RED.stroke_width(2)))?;
         for (k, r) in self.rows.iter().enumerate().filter(|(_, r)| !r.nan) {
@@ -884,13 +933,20 @@ pub fn index(pages: &[(String, Report)]) -> String {
     );
     for (page, r) in pages {
         let front: Vec<&Row> = r.rows.iter().filter(|row| row.on_front).collect();
-        let fastest = front.iter().min_by(|a, b| a.ms_median.total_cmp(&b.ms_median));
+        let fastest = front
+            .iter()
+            .min_by(|a, b| a.ms_median.total_cmp(&b.ms_median));
         let finest = front
             .iter()
             .min_by(|a, b| judged_error(a).total_cmp(&judged_error(b)));
         let cell = |row: Option<&&Row>| {
             row.map_or("none".to_string(), |row| {
-                format!("{}: {:.4} ms, {:.1e}", row.name, row.ms_median, judged_error(row))
+                format!(
+                    "{}: {:.4} ms, {:.1e}",
+                    row.name,
+                    row.ms_median,
+                    judged_error(row)
+                )
             })
         };
         let holds = [
@@ -904,12 +960,22 @@ pub fn index(pages: &[(String, Report)]) -> String {
         .join(", ");
         out += &format!(
             "| [{}]({page}) | {} / {} | {} | {:.1e}{} | {} | {} |\n",
-            r.scene.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+            r.scene
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
             r.features.dynamic,
             r.features.statics,
-            if holds.is_empty() { "flight only".into() } else { holds },
+            if holds.is_empty() {
+                "flight only".into()
+            } else {
+                holds
+            },
             r.reference.agreement,
-            if r.reference.converged { "" } else { " (not converged)" },
+            if r.reference.converged {
+                ""
+            } else {
+                " (not converged)"
+            },
             cell(fastest),
             cell(finest),
         );
@@ -926,7 +992,9 @@ mod tests {
         let c = Candidate::parse("solver=impulses; impulse_iterations=8").unwrap();
         assert_eq!(c.overrides, ["solver=impulses", "impulse_iterations=8"]);
         assert!(Candidate::parse(" ; ").is_err());
-        let e = Candidate::parse("solver=impulses;fast").unwrap_err().to_string();
+        let e = Candidate::parse("solver=impulses;fast")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("`fast` is not NAME=VALUE"), "{e}");
     }
 
@@ -951,7 +1019,9 @@ mod tests {
     }
 
     fn shipped(name: &str, steps: u64) -> Subject {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes").join(name);
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/scenes")
+            .join(name);
         Subject::read(&path, steps, Vec::new()).unwrap()
     }
 
@@ -978,13 +1048,25 @@ mod tests {
         let (p0, v0) = (b.pos, b.vel);
         let report = measure(&subject, None, &Options::default(), &hidden).unwrap();
         let error = reference_error(&report, dt, |t| p0 + v0 * t + g * (0.5 * t * t));
-        let best = report.rows.iter().map(|r| r.worst_error).fold(f64::INFINITY, f64::min);
+        let best = report
+            .rows
+            .iter()
+            .map(|r| r.worst_error)
+            .fold(f64::INFINITY, f64::min);
         assert!(error < best, "reference {error:e}, best candidate {best:e}");
         // Symplectic Euler lags the closed form by |g| dt t / 2, worst at the end: 1/6
         // after 2 s at 1/60 under gravity 10.
-        let symplectic = report.rows.iter().find(|r| r.name == "symplectic, 1 sub-step").unwrap();
+        let symplectic = report
+            .rows
+            .iter()
+            .find(|r| r.name == "symplectic, 1 sub-step")
+            .unwrap();
         let lag = g.length() * dt * 2.0 / 2.0;
-        assert!((symplectic.worst_error - lag).abs() < 1e-9, "{}", symplectic.worst_error);
+        assert!(
+            (symplectic.worst_error - lag).abs() < 1e-9,
+            "{}",
+            symplectic.worst_error
+        );
         assert!(!report.features.contacts);
 
         // The slide: p0 + v0 t on frictionless ground.
@@ -995,7 +1077,11 @@ mod tests {
         let report = measure(&subject, None, &Options::default(), &hidden).unwrap();
         assert!(report.features.contacts);
         let error = reference_error(&report, dt, |t| p0 + v0 * t);
-        let best = report.rows.iter().map(|r| r.worst_error).fold(f64::INFINITY, f64::min);
+        let best = report
+            .rows
+            .iter()
+            .map(|r| r.worst_error)
+            .fold(f64::INFINITY, f64::min);
         assert!(error < best, "reference {error:e}, best candidate {best:e}");
     }
 
@@ -1003,9 +1089,12 @@ mod tests {
     fn a_pile_against_its_reference_gains_from_more_passes_and_sub_steps() {
         let hidden = indicatif::ProgressBar::hidden();
         let subject = shipped("pyramid-10.toml", 60);
-        let candidates = ["solver=impulses;impulse_iterations=2", "solver=impulses;impulse_iterations=8;substeps=4"]
-            .map(|c| Candidate::parse(c).unwrap())
-            .to_vec();
+        let candidates = [
+            "solver=impulses;impulse_iterations=2",
+            "solver=impulses;impulse_iterations=8;substeps=4",
+        ]
+        .map(|c| Candidate::parse(c).unwrap())
+        .to_vec();
         let opts = Options {
             max_refinements: 2,
             ..Options::default()
@@ -1020,6 +1109,8 @@ mod tests {
         );
         assert!(many.work > few.work, "the solver work counts passes");
         assert!(many.worst_error >= report.reference.resolution);
-        assert!(!report.features.particles && report.rows.iter().all(|r| r.particle_error.is_none()));
+        assert!(
+            !report.features.particles && report.rows.iter().all(|r| r.particle_error.is_none())
+        );
     }
 }

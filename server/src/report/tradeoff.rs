@@ -69,7 +69,8 @@ pub const SCENES: &[(&str, &str, &str, u64, Option<ClosedForm>)] = &[
 ];
 
 /// What the error of a scene without a closed form measures.
-const AGAINST_REFERENCE: &str = "position against the converged reference, worst over the run (units)";
+const AGAINST_REFERENCE: &str =
+    "position against the converged reference, worst over the run (units)";
 
 /// A shipped scene as the tool's subject.
 pub fn subject(name: &str) -> Subject {
@@ -114,7 +115,9 @@ pub fn cells(scene: &'static str, report: &Report) -> Vec<Cell> {
 
 /// Every scene of the report, each with its reference's line; `progress` is told each
 /// step of every run.
-pub fn run_all(progress: &indicatif::ProgressBar) -> Result<(Vec<Cell>, Vec<(&'static str, String)>)> {
+pub fn run_all(
+    progress: &indicatif::ProgressBar,
+) -> Result<(Vec<Cell>, Vec<(&'static str, String)>)> {
     let mut all = Vec::new();
     let mut references = Vec::new();
     for &(scene, ..) in SCENES {

@@ -232,9 +232,11 @@ impl Particles {
             .zip(self.ay[..n].chunks(size))
             .zip(self.drag[..n].chunks(size))
             .zip(self.size_delta[..n].chunks(size))
-            .map(|(((((((((x, y), vx), vy), life), sz), ax), ay), drag), sd)| {
-                (x, y, vx, vy, life, sz, ax, ay, drag, sd)
-            })
+            .map(
+                |(((((((((x, y), vx), vy), life), sz), ax), ay), drag), sd)| {
+                    (x, y, vx, vy, life, sz, ax, ay, drag, sd)
+                },
+            )
             .collect();
         let expired = crate::parallel::run(threads, chunks, |chunk| {
             let (x, y, vx, vy, life, size, ax, ay, drag, size_delta) = chunk;

@@ -360,7 +360,12 @@ fn scene_tradeoff(out: PathBuf, args: SceneTradeoffArgs) -> Result<()> {
                 report.to_markdown(),
             ),
         )?;
-        eprintln!("wrote {}, {} and {}", csv.display(), png.display(), md.display());
+        eprintln!(
+            "wrote {}, {} and {}",
+            csv.display(),
+            png.display(),
+            md.display()
+        );
         pages.push((format!("{stem}.md"), report));
     }
     if pages.len() > 1 {
@@ -424,7 +429,13 @@ fn simulate(args: SimulateArgs) -> Result<()> {
         accuracy_cache.as_deref(),
     )? {
         eprintln!("{}", pick.reason());
-        overrides = pick.candidate.overrides.iter().chain(&overrides).cloned().collect();
+        overrides = pick
+            .candidate
+            .overrides
+            .iter()
+            .chain(&overrides)
+            .cloned()
+            .collect();
     }
     let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)?;
     let inputs = match inputs {
