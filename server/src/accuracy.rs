@@ -59,6 +59,8 @@ pub struct Pick {
     pub measured: usize,
     pub from_cache: bool,
     pub reference: String,
+    /// Errors below this are not resolved by the reference.
+    pub resolution: f64,
     pub steps: u64,
 }
 
@@ -73,13 +75,13 @@ impl Pick {
         };
         if self.met {
             format!(
-                "accuracy {:e}: `{}` (worst position error {:.2e} over {} steps against {}; the cheapest of {} of {} candidates that meet it, solver work {}; {how})",
-                self.target, c.name, c.worst_error, self.steps, self.reference, self.meeting, self.measured, c.work
+                "accuracy {:e}: `{}` (worst position error {:.2e} over {} steps against {}, itself good to {:.1e}; the cheapest of {} of {} candidates that meet it, solver work {}; {how})",
+                self.target, c.name, c.worst_error, self.steps, self.reference, self.resolution, self.meeting, self.measured, c.work
             )
         } else {
             format!(
-                "accuracy {:e} is met by none of {} candidates: `{}` is the most accurate (worst position error {:.2e} over {} steps against {}; {how})",
-                self.target, self.measured, c.name, c.worst_error, self.steps, self.reference
+                "accuracy {:e} is met by none of {} candidates: `{}` is the most accurate (worst position error {:.2e} over {} steps against {}, itself good to {:.1e}; {how})",
+                self.target, self.measured, c.name, c.worst_error, self.steps, self.reference, self.resolution
             )
         }
     }
@@ -114,6 +116,7 @@ pub fn pick_from(measure: &Measure, target: f64, from_cache: bool) -> Option<Pic
         measured: measure.candidates.len(),
         from_cache,
         reference: measure.reference.clone(),
+        resolution: measure.resolution,
         steps: measure.steps,
     })
 }
