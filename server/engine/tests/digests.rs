@@ -81,7 +81,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "pyramid-100",
-        "3890a41137bfb1ec9a4a1751a4bd1c1c7bd50b92cdb23bb1bc5c8bc0dba79712",
+        "c8eb726b8f6aa38c25df0ab029afaff0fb6cd905abe64f7a91e2455acb9fc5d3",
     ),
     (
         "slide",

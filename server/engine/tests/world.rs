@@ -409,3 +409,29 @@ fn settling_starts_the_pile_warm() {
     assert!(cold > 0.0, "the cold pile did not move at all");
     assert!(warm < cold / 10.0, "settled {warm} against cold {cold}");
 }
+
+/// The brief's pile at its shipped setting: the worst drift of any box over all 500 steps
+/// stays under a hundredth of a box (the cold pile's first frames are solved to
+/// convergence, `start_iterations`); without the start passes the apex sinks half a box.
+#[test]
+fn the_shipped_pyramid_100_holds_within_a_hundredth_of_a_box_over_every_step() {
+    let worst = |settings: &[&str]| {
+        let mut w = common::asset("pyramid-100.toml");
+        for s in settings {
+            w.apply(&common::set(s)).unwrap();
+        }
+        let start: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
+        let mut worst: f64 = 0.0;
+        for _ in 0..500 {
+            w.step();
+            for (b, p) in w.bodies().iter().zip(&start) {
+                worst = worst.max((b.pos - *p).length());
+            }
+        }
+        worst
+    };
+    let shipped = worst(&[]);
+    assert!(shipped < 0.01, "worst drift {shipped} box sizes");
+    let cold = worst(&["start_iterations=0"]);
+    assert!(cold > 0.1, "without the start passes: {cold}");
+}

@@ -87,6 +87,8 @@ settings! {
     Slop(f64) => slop,
     RelaxIterations(u32) => relax_iterations,
     SettleIterations(u32) => settle_iterations,
+    StartIterations(u32) => start_iterations,
+    StartFrames(u32) => start_frames,
     ContactHertz(f64) => contact_hertz,
     ContactDamping(f64) => contact_damping,
     SplitImpulses(bool) => split_impulses,

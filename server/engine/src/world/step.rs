@@ -273,6 +273,7 @@ impl World {
         let flagged = self.flagged.clone();
         let config = self.config.clone();
         self.config.impulse_iterations = config.settle_iterations;
+        self.config.start_iterations = 0;
         self.config.relax_iterations = 0;
         self.solve_impulses(&mut StepStats::default(), dt);
         self.config = config;
@@ -319,7 +320,7 @@ impl World {
         self.sweep_out = some;
         let config = &self.config;
         let params = ImpulseParams {
-            iterations: config.impulse_iterations,
+            iterations: config.impulse_iterations_at(self.frame),
             relax_iterations: config.relax_iterations,
             warm_starting: config.warm_starting,
             baumgarte: config.baumgarte,
