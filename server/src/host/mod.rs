@@ -542,7 +542,8 @@ fn one_heap() {
 /// [`TRIM_EVERY`]; cheap on a heap of a few MiB.
 fn give_back_memory() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: malloc_trim only releases free memory of the allocator's own heaps.
+    // SAFETY: malloc_trim only releases free memory of the allocator's own heaps;
+    // mallinfo2 only reads its counters.
     unsafe {
         libc::malloc_trim(0);
         let heap = libc::mallinfo2();
