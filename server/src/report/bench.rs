@@ -17,6 +17,8 @@ use serde::Serialize;
 use ricochet_engine::scene;
 use ricochet_engine::world::World;
 
+use super::percentile;
+
 /// What a case reports besides time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Figure {
@@ -237,10 +239,6 @@ pub fn cases(pyramid: Option<Vec<String>>, steps: u64) -> Vec<Case> {
             figure: Figure::None,
         },
     ]
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 /// Loads `scene` from `dir` with `overrides` over its `[world]`.

@@ -5,9 +5,11 @@
 //! - [`tradeoff`]: what each solver setting costs and buys in accuracy, on shipped scenes;
 //! - [`scene_tradeoff`]: the same on any scene, against a converged reference;
 //! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
+//! - [`chart`]: the trade-off charts' font and their time-against-error panel;
 //! - [`splice`]: how a run writes its table into a hand-written page.
 
 pub mod bench;
+pub mod chart;
 pub mod scene_tradeoff;
 pub mod soak;
 pub mod tradeoff;
@@ -15,6 +17,14 @@ pub mod tradeoff;
 use std::path::Path;
 
 use anyhow::{Context, Result};
+
+/// The `p` quantile (0 to 1) of `sorted` values, the nearest rank; NaN when empty.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
+}
 
 /// Replaces what lies between `<!-- NAME:begin -->` and `<!-- NAME:end -->` in the file
 /// at `path` by `content`: the generated part of a hand-written page.

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use anyhow::Result;
 
+use super::chart::{panel, register_font, Point};
 use super::scene_tradeoff::{judged_error, measure, ClosedForm, Options, Report, Subject};
 
 /// One cell of the report: a scene under a setting.
@@ -187,28 +188,6 @@ pub fn on_front(cell: &Cell, cells: &[Cell]) -> bool {
         })
 }
 
-/// Where the chart's font is looked for (Debian's fonts-dejavu-core).
-pub const FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-
-/// Registers [`FONT`] as the charts' sans-serif (once; later calls do nothing).
-pub fn register_font() -> anyhow::Result<()> {
-    static REGISTERED: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
-    REGISTERED
-        .get_or_init(|| {
-            let font = std::fs::read(FONT).map_err(|e| {
-                format!("the chart needs the font {FONT} (Debian: fonts-dejavu-core): {e}")
-            })?;
-            plotters::style::register_font(
-                "sans-serif",
-                plotters::style::FontStyle::Normal,
-                Box::leak(font.into_boxed_slice()),
-            )
-            .map_err(|_| format!("{FONT} is not a usable font"))
-        })
-        .clone()
-        .map_err(|e| anyhow::anyhow!(e))
-}
-
 /// Draws time against error per scene, the front in red, as a PNG.
 pub fn chart(cells: &[Cell], path: &std::path::Path) -> anyhow::Result<()> {
     use plotters::prelude::*;
@@ -223,7 +202,7 @@ pub fn chart(cells: &[Cell], path: &std::path::Path) -> anyhow::Result<()> {
     let root = BitMapBackend::new(path, (1500, 950)).into_drawing_area();
     root.fill(&WHITE)?;
     let panels = root.split_evenly((2, 3));
-    for (panel, &(scene, ..)) in panels.iter().zip(SCENES) {
+    for (area, &(scene, ..)) in panels.iter().zip(SCENES) {
         let mine: Vec<&Cell> = cells
             .iter()
             .filter(|c| c.scene == scene && !c.nan)
@@ -231,52 +210,16 @@ pub fn chart(cells: &[Cell], path: &std::path::Path) -> anyhow::Result<()> {
         let Some(error_name) = mine.first().map(|c| c.error_name) else {
             continue;
         };
-        let floor = 1e-15;
-        let (xs, ys): (Vec<f64>, Vec<f64>) = mine
+        let points: Vec<Point> = mine
             .iter()
-            .map(|c| (c.ms_per_step.max(1e-6), c.error.max(floor)))
-            .unzip();
-        let (x0, x1) = (
-            xs.iter().cloned().fold(f64::MAX, f64::min) / 1.5,
-            xs.iter().cloned().fold(0.0, f64::max) * 1.5,
-        );
-        let (y0, y1) = (
-            ys.iter().cloned().fold(f64::MAX, f64::min) / 3.0,
-            ys.iter().cloned().fold(0.0, f64::max) * 3.0,
-        );
-        let mut chart = ChartBuilder::on(panel)
-            .caption(scene, ("sans-serif", 22))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(70)
-            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
-        chart
-            .configure_mesh()
-            .x_desc("median ms per step")
-            .y_desc(error_name)
-            .axis_desc_style(("sans-serif", 13))
-            .x_label_formatter(&|v| format!("{v:.2e}"))
-            .y_label_formatter(&|v| format!("{v:.0e}"))
-            .x_labels(5)
-            .label_style(("sans-serif", 12))
-            .draw()?;
-        let mut front: Vec<(f64, f64)> = mine
-            .iter()
-            .filter(|c| on_front(c, cells))
-            .map(|c| (c.ms_per_step.max(1e-6), c.error.max(floor)))
+            .map(|c| Point {
+                ms: c.ms_per_step,
+                error: c.error,
+                front: on_front(c, cells),
+                label: names.iter().position(|n| *n == c.setting).unwrap_or(0) + 1,
+            })
             .collect();
-        front.sort_by(|a, b| a.0.total_cmp(&b.0));
-        chart.draw_series(LineSeries::new(front.clone(), RED.stroke_width(2)))?;
-        for c in &mine {
-            let at = (c.ms_per_step.max(1e-6), c.error.max(floor));
-            let colour = if on_front(c, cells) { RED } else { BLUE };
-            let index = names.iter().position(|n| *n == c.setting).unwrap_or(0) + 1;
-            chart.draw_series(std::iter::once(
-                EmptyElement::at(at)
-                    + Circle::new((0, 0), 5, colour.filled())
-                    + Text::new(format!("{index}"), (7, -7), ("sans-serif", 13)),
-            ))?;
-        }
+        panel(area, scene, error_name, &points)?;
     }
     if let Some(legend) = panels.get(5) {
         legend.draw(&Text::new(

@@ -342,14 +342,20 @@ impl World {
 
     /// Kinetic plus potential energy of the dynamic bodies (see [`StepStats::energy`]).
     pub fn mechanical_energy(&self) -> f64 {
+        self.energies().1
+    }
+
+    /// (kinetic, kinetic plus potential) energy of the dynamic bodies, in one pass.
+    pub(super) fn energies(&self) -> (f64, f64) {
         let (g, scaled) = (self.config.gravity, self.config.mass_scaled_acceleration);
-        self.movers
-            .iter()
-            .map(|&i| {
-                let b = &self.bodies[i as usize];
-                let a = crate::dynamics::integrate::acceleration_under(b, g, scaled);
-                b.kinetic_energy() - b.mass() * a.dot(b.pos)
-            })
-            .sum()
+        let (mut kinetic, mut mechanical) = (0.0, 0.0);
+        for &i in &self.movers {
+            let b = &self.bodies[i as usize];
+            let k = b.kinetic_energy();
+            let a = crate::dynamics::integrate::acceleration_under(b, g, scaled);
+            kinetic += k;
+            mechanical += k - b.mass() * a.dot(b.pos);
+        }
+        (kinetic, mechanical)
     }
 }

@@ -76,8 +76,7 @@ impl World {
             self.update_sleep();
         }
         stats.sleeping = self.sleeping;
-        stats.kinetic_energy = self.kinetic_energy();
-        stats.energy = self.mechanical_energy();
+        (stats.kinetic_energy, stats.energy) = self.energies();
         stats.energy_change = stats.energy - energy_before;
         self.last_energy = Some(stats.energy);
         self.stats = stats;

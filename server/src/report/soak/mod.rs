@@ -31,6 +31,8 @@ use ricochet_protocol::frame::peek_header;
 use ricochet_protocol::net::{Mode, Network};
 use zenoh::Wait;
 
+use super::percentile;
+
 /// What to run.
 #[derive(Clone, Debug)]
 pub struct SoakOptions {
@@ -129,13 +131,6 @@ fn add(a: &Health, b: &Health) -> Health {
         unsent: a.unsent + b.unsent,
         queries: a.queries + b.queries,
     }
-}
-
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
 }
 
 /// Runs the soak.

@@ -1,0 +1,249 @@
+//! A measured scene as CSV, Markdown, a terminal table, a chart, and the index of several.
+
+use std::path::Path;
+
+use anyhow::{bail, Result};
+
+use super::{judged_error, Report, Row};
+use crate::report::chart::{panel, register_font, Point};
+
+impl Report {
+    pub fn to_csv(&self) -> String {
+        let mut out = String::from(
+            "scene,setting,overrides,ms_median,ms_p10,ms_p90,solver_work,worst_error,rms_error,deepest_penetration,worst_energy_change,particle_worst_error,particle_rms_error,nan,on_front\n",
+        );
+        for r in &self.rows {
+            let (pw, pr) = r
+                .particle_error
+                .map_or((String::new(), String::new()), |(w, rms)| {
+                    (format!("{w:.6e}"), format!("{rms:.6e}"))
+                });
+            out += &format!(
+                "{},\"{}\",\"{}\",{:.6},{:.6},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{pw},{pr},{},{}\n",
+                self.scene.display(),
+                r.name,
+                r.overrides.join(";"),
+                r.ms_median,
+                r.ms_spread.0,
+                r.ms_spread.1,
+                r.work,
+                r.worst_error,
+                r.rms_error,
+                r.deepest_penetration,
+                r.worst_energy_change,
+                r.nan,
+                r.on_front
+            );
+        }
+        out
+    }
+
+    /// What the reference is and how far it is to be trusted, in one sentence.
+    pub fn reference_line(&self) -> String {
+        let r = &self.reference;
+        let how = if r.converged {
+            "converged".to_string()
+        } else if r.stopped_by_budget {
+            "not converged: the next refinement would have gone past the time budget".into()
+        } else {
+            "not converged within the refinements allowed".into()
+        };
+        format!(
+            "Reference: {} ({} refinement{} of sub-steps and passes; the last two agree to {:.2e} units, worst over the run: {how}). Errors below {:.2e} are not resolved and show as that. The scene's length unit (median dynamic body size): {}.",
+            r.name,
+            r.refinements,
+            if r.refinements == 1 { "" } else { "s" },
+            r.agreement,
+            r.resolution,
+            self.unit,
+        )
+    }
+
+    /// A Markdown table of the rows, the front marked.
+    pub fn to_markdown(&self) -> String {
+        let particles = self.features.particles;
+        let mut out = String::from(
+            "| setting | median ms/step (p10-p90) | solver work | worst error | RMS error | deepest penetration | worst energy change |",
+        );
+        if particles {
+            out += " particle error worst / RMS |";
+        }
+        out += " front |\n|---|---|---|---|---|---|---|";
+        if particles {
+            out += "---|";
+        }
+        out += "---|\n";
+        for r in &self.rows {
+            out += &format!(
+                "| {} | {:.5} ({:.5}-{:.5}) | {} | {:.2e}{} | {:.2e} | {:.2e} | {:.2e} |",
+                r.name,
+                r.ms_median,
+                r.ms_spread.0,
+                r.ms_spread.1,
+                r.work,
+                r.worst_error,
+                if r.nan { " NaN" } else { "" },
+                r.rms_error,
+                r.deepest_penetration,
+                r.worst_energy_change,
+            );
+            if particles {
+                let (w, rms) = r.particle_error.unwrap_or((0.0, 0.0));
+                out += &format!(" {w:.2e} / {rms:.2e} |");
+            }
+            out += &format!(" {} |\n", if r.on_front { "yes" } else { "" });
+        }
+        out
+    }
+
+    /// A short table for the terminal.
+    pub fn to_text(&self) -> String {
+        let width = self
+            .rows
+            .iter()
+            .map(|r| r.name.len())
+            .max()
+            .unwrap_or(7)
+            .max(7);
+        let mut out = format!(
+            "{}: {} steps; {} dynamic, {} static bodies{}{}\n{}\n\n{:width$}  {:>10}  {:>10}  {:>10}  {:>10}  front\n",
+            self.scene.display(),
+            self.steps,
+            self.features.dynamic,
+            self.features.statics,
+            if self.features.contacts { ", contacts" } else { ", no contacts" },
+            if self.features.particles { ", particles" } else { "" },
+            self.reference_line(),
+            "setting",
+            "ms/step",
+            "worst err",
+            "RMS err",
+            "energy",
+        );
+        for r in &self.rows {
+            out += &format!(
+                "{:width$}  {:>10.5}  {:>10.2e}  {:>10.2e}  {:>10.2e}  {}\n",
+                r.name,
+                r.ms_median,
+                r.worst_error,
+                r.rms_error,
+                r.worst_energy_change,
+                if r.nan {
+                    "NaN"
+                } else if r.on_front {
+                    "*"
+                } else {
+                    ""
+                },
+            );
+        }
+        out
+    }
+
+    /// Time against error on log scales, the front in red, as a PNG.
+    pub fn chart(&self, path: &Path) -> Result<()> {
+        use plotters::prelude::*;
+        register_font()?;
+        let rows: Vec<&Row> = self.rows.iter().filter(|r| !r.nan).collect();
+        if rows.is_empty() {
+            bail!("every candidate gave NaN: nothing to chart");
+        }
+        let root = BitMapBackend::new(path, (1100, 700)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let (plot, legend) = root.split_horizontally(700);
+        let title = self
+            .scene
+            .file_name()
+            .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
+        let points: Vec<Point> = self
+            .rows
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| !r.nan)
+            .map(|(k, r)| Point {
+                ms: r.ms_median,
+                error: judged_error(r),
+                front: r.on_front,
+                label: k + 1,
+            })
+            .collect();
+        panel(
+            &plot,
+            &title,
+            "worst position error over the run (units)",
+            &points,
+        )?;
+        legend.draw(&Text::new(
+            "Settings (red: on the front)",
+            (10, 20),
+            ("sans-serif", 17),
+        ))?;
+        for (k, r) in self.rows.iter().enumerate() {
+            legend.draw(&Text::new(
+                format!("{}  {}{}", k + 1, r.name, if r.nan { " (NaN)" } else { "" }),
+                (10, 48 + 22 * k as i32),
+                ("sans-serif", 14),
+            ))?;
+        }
+        root.present()?;
+        Ok(())
+    }
+}
+
+/// One line per scene: what it holds, how far its reference is to be trusted, and the
+/// ends of its front (the fastest setting on it, and the most accurate).
+pub fn index(pages: &[(String, Report)]) -> String {
+    let mut out = String::from(
+        "| scene | bodies (dynamic / static) | holds | reference agrees to | fastest on the front | most accurate on the front |\n|---|---|---|---|---|---|\n",
+    );
+    for (page, r) in pages {
+        let front: Vec<&Row> = r.rows.iter().filter(|row| row.on_front).collect();
+        let fastest = front
+            .iter()
+            .min_by(|a, b| a.ms_median.total_cmp(&b.ms_median));
+        let finest = front
+            .iter()
+            .min_by(|a, b| judged_error(a).total_cmp(&judged_error(b)));
+        let cell = |row: Option<&&Row>| {
+            row.map_or("none".to_string(), |row| {
+                format!(
+                    "{}: {:.4} ms, {:.1e}",
+                    row.name,
+                    row.ms_median,
+                    judged_error(row)
+                )
+            })
+        };
+        let holds = [
+            (r.features.contacts, "contacts"),
+            (r.features.particles, "particles"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, what)| *what)
+        .collect::<Vec<_>>()
+        .join(", ");
+        out += &format!(
+            "| [{}]({page}) | {} / {} | {} | {:.1e}{} | {} | {} |\n",
+            r.scene
+                .file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+            r.features.dynamic,
+            r.features.statics,
+            if holds.is_empty() {
+                "flight only".into()
+            } else {
+                holds
+            },
+            r.reference.agreement,
+            if r.reference.converged {
+                ""
+            } else {
+                " (not converged)"
+            },
+            cell(fastest),
+            cell(finest),
+        );
+    }
+    out
+}

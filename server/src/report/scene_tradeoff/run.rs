@@ -1,0 +1,181 @@
+//! One run of a scene under a setting, recorded for comparing (positions per frame,
+//! particles at sampled frames, times and figures), and the differences of two runs.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use glam::DVec2;
+
+use ricochet_engine::world::World;
+
+use super::{Features, Subject};
+
+/// One run of the scene: per frame (after each step) the dynamic bodies' positions, and
+/// the particles' at sampled frames; its times and figures.
+pub struct Run {
+    /// Frame-major positions of the dynamic bodies (those dynamic at the start, by index).
+    pub bodies: Vec<DVec2>,
+    pub dynamic: Vec<usize>,
+    /// (frame, positions) every `particle_every` frames.
+    pub particles: Vec<(u64, Vec<[f32; 2]>)>,
+    pub ms: Vec<f64>,
+    /// Solver passes times contacts, plus sub-steps times dynamic bodies, summed over the
+    /// run: the work the step did, counted (the same on any machine).
+    pub work: u64,
+    pub deepest_penetration: f64,
+    pub worst_energy_change: f64,
+    pub nan: bool,
+    pub features: Features,
+}
+
+/// How many particle positions a run keeps at most (sampled frames times particles).
+const PARTICLE_SAMPLES: usize = 4_000_000;
+
+fn energy(w: &World) -> f64 {
+    let g = w.config.gravity;
+    w.bodies()
+        .iter()
+        .filter(|b| !b.is_static())
+        .map(|b| b.kinetic_energy() - b.mass() * g.dot(b.pos))
+        .sum()
+}
+
+/// Runs the scene under `overrides`, calling `tick` after each step.
+pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> Result<Run> {
+    let mut w = subject.world(overrides)?;
+    let dynamic: Vec<usize> = (0..w.bodies().len())
+        .filter(|&i| !w.bodies()[i].is_static())
+        .collect();
+    let statics = w.bodies().len() - dynamic.len();
+    let [lo, hi] = w.config.bounds;
+    let size = (hi - lo).length();
+    let e0 = energy(&w);
+    let scale = e0.abs().max(1e-12);
+    let steps = subject.steps as usize;
+    let mut run = Run {
+        bodies: Vec::with_capacity(dynamic.len() * steps),
+        dynamic,
+        particles: Vec::new(),
+        ms: Vec::with_capacity(steps),
+        work: 0,
+        deepest_penetration: 0.0,
+        worst_energy_change: 0.0,
+        nan: false,
+        features: Features {
+            statics,
+            ..Features::default()
+        },
+    };
+    run.features.dynamic = run.dynamic.len();
+    let mut particle_every = 1u64;
+    let mut inputs = subject.inputs.iter().peekable();
+    for _ in 0..subject.steps {
+        let mut acted = false;
+        while let Some(input) = inputs.next_if(|a| a.frame <= w.frame()) {
+            // An action the world refuses is refused under every setting alike.
+            let _ = w.apply(&input.action);
+            acted = true;
+        }
+        let t = Instant::now();
+        w.step();
+        run.ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let s = w.stats();
+        run.work += s.relaxation_iterations.max(1) * s.contacts
+            + u64::from(w.config.substeps) * run.dynamic.len() as u64;
+        run.features.contacts |= s.contacts > 0;
+        run.deepest_penetration = run.deepest_penetration.max(s.deepest_penetration);
+        if !acted {
+            // Inputs change the energy on purpose; a step without them should not.
+            let e = energy(&w);
+            run.worst_energy_change = run.worst_energy_change.max((e - e0).abs() / scale);
+        }
+        let bodies = w.bodies();
+        for &i in &run.dynamic {
+            let b = bodies.get(i);
+            let p = b.map_or(DVec2::NAN, |b| b.pos);
+            run.nan |= !p.is_finite();
+            if let Some(b) = b {
+                run.features.fast |= b.vel.length() * w.config.dt > 0.01 * size;
+            }
+            run.bodies.push(p);
+        }
+        let n = w.particles().len();
+        run.features.particles |= n > 0;
+        if n > 0 {
+            if run.particles.is_empty() {
+                particle_every = ((steps * n) / PARTICLE_SAMPLES).max(1) as u64;
+            }
+            if w.frame() % particle_every == 0 {
+                let ps = w.particles();
+                run.particles
+                    .push((w.frame(), (0..n).map(|i| ps.pos(i).to_array()).collect()));
+            }
+        }
+        tick();
+    }
+    Ok(run)
+}
+
+/// Short runs are repeated for their times (each step's fastest) until they have taken
+/// this long, at most [`MAX_REPEATS`] times: a step of a microsecond is timed by many.
+const TIMED_FOR_MS: f64 = 200.0;
+const MAX_REPEATS: u32 = 20;
+
+/// [`run`], repeated for its times while it is short.
+pub(super) fn timed_run(
+    subject: &Subject,
+    overrides: &[String],
+    progress: &indicatif::ProgressBar,
+) -> Result<Run> {
+    progress.inc_length(subject.steps);
+    let mut r = run(subject, overrides, || progress.inc(1))?;
+    let mut spent: f64 = r.ms.iter().sum();
+    let mut repeats = 1;
+    while spent < TIMED_FOR_MS && repeats < MAX_REPEATS {
+        let again = run(subject, overrides, || {})?;
+        spent += again.ms.iter().sum::<f64>();
+        for (a, b) in r.ms.iter_mut().zip(&again.ms) {
+            *a = a.min(*b);
+        }
+        repeats += 1;
+    }
+    Ok(r)
+}
+
+/// (worst, RMS) of the position differences of two runs, frame by frame.
+pub(super) fn body_error(a: &Run, b: &Run) -> (f64, f64) {
+    let (mut worst, mut sum, mut n) = (0.0f64, 0.0, 0usize);
+    for (p, q) in a.bodies.iter().zip(&b.bodies) {
+        let d = (*p - *q).length();
+        if d.is_nan() {
+            return (f64::NAN, f64::NAN);
+        }
+        worst = worst.max(d);
+        sum += d * d;
+        n += 1;
+    }
+    (worst, if n > 0 { (sum / n as f64).sqrt() } else { 0.0 })
+}
+
+/// (worst, RMS, particles unmatched) of the particle differences at the frames both
+/// sampled.
+pub(super) fn particle_error(a: &Run, b: &Run) -> (f64, f64, u64) {
+    let (mut worst, mut sum, mut n, mut unmatched) = (0.0f64, 0.0, 0usize, 0u64);
+    for (fa, pa) in &a.particles {
+        let Some((_, pb)) = b.particles.iter().find(|(fb, _)| fb == fa) else {
+            continue;
+        };
+        unmatched += pa.len().abs_diff(pb.len()) as u64;
+        for (p, q) in pa.iter().zip(pb) {
+            let d = f64::from((p[0] - q[0]).hypot(p[1] - q[1]));
+            worst = worst.max(d);
+            sum += d * d;
+            n += 1;
+        }
+    }
+    (
+        worst,
+        if n > 0 { (sum / n as f64).sqrt() } else { 0.0 },
+        unmatched,
+    )
+}
