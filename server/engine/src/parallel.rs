@@ -17,7 +17,12 @@ pub const MIN_SPLIT: usize = 8192;
 
 /// The threads a request for `threads` gets: at least 1, at most the machine's cores.
 pub fn effective(threads: u32) -> usize {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if threads <= 1 {
+        return 1;
+    }
+    // Asked once: the answer reads the process's affinity and cgroup limits.
+    static CORES: OnceLock<usize> = OnceLock::new();
+    let cores = *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     (threads as usize).clamp(1, cores)
 }
 
@@ -62,4 +67,14 @@ pub fn run<T: Send, R: Send>(
         return chunks.into_iter().map(work).collect();
     }
     pool(effective(threads)).install(|| chunks.into_par_iter().map(&work).collect())
+}
+
+/// Runs `work` on the shared pool of `threads` (inline on one thread), so that the
+/// [`run`]s it makes split among threads already running.
+pub fn install<R: Send>(threads: u32, work: impl FnOnce() -> R + Send) -> R {
+    let n = effective(threads);
+    if n == 1 {
+        return work();
+    }
+    pool(n).install(work)
 }

@@ -81,7 +81,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "pyramid-100",
-        "c8eb726b8f6aa38c25df0ab029afaff0fb6cd905abe64f7a91e2455acb9fc5d3",
+        "641fed1cd0875ac4f8eb086b0d167815a5ab2e92248c400aadcdc2c5d65f8e78",
     ),
     (
         "slide",

@@ -1,5 +1,6 @@
 //! A world stepped on several threads gives the one-thread world, bit for bit, on every
-//! shipped scene.
+//! shipped scene: particle passes split in chunks, and the impulse solver's contacts in
+//! blocks (the 100-level pyramid).
 
 mod common;
 
@@ -29,6 +30,7 @@ fn every_shipped_scene_steps_to_the_same_bits_on_any_thread_count() {
     let scenes = shipped();
     assert!(scenes.len() > 20, "{scenes:?}");
     let mut split = 0;
+    let mut blocked = 0;
     for path in scenes {
         let run = |threads: u32| {
             let mut w = scene::load(&path).unwrap();
@@ -38,11 +40,14 @@ fn every_shipped_scene_steps_to_the_same_bits_on_any_thread_count() {
                 w.step_n(30);
                 states.push(state(&w));
             }
-            (states, w.particles().len())
+            let moving = w.bodies().iter().filter(|b| !b.is_static()).count();
+            let rigid_split = w.config.solver == Solver::Impulses
+                && ricochet_engine::dynamics::impulse::block_count(moving) > 1;
+            (states, w.particles().len(), rigid_split)
         };
-        let (one, particles) = run(1);
+        let (one, particles, rigid_split) = run(1);
         for threads in [2, 8] {
-            let (many, _) = run(threads);
+            let (many, _, _) = run(threads);
             assert!(
                 one == many,
                 "{}: {threads} threads differ from one",
@@ -52,6 +57,7 @@ fn every_shipped_scene_steps_to_the_same_bits_on_any_thread_count() {
         if particles >= ricochet_engine::parallel::MIN_SPLIT {
             split += 1;
         }
+        blocked += usize::from(rigid_split);
     }
     // Scenes whose particle passes were split (when the machine has two cores or more).
     if ricochet_engine::parallel::effective(2) > 1 {
@@ -59,6 +65,8 @@ fn every_shipped_scene_steps_to_the_same_bits_on_any_thread_count() {
             split >= 3,
             "only {split} scenes had particles enough to split"
         );
+        // The 100-level pyramid's contacts are solved in blocks on both threads.
+        assert!(blocked >= 1, "no scene's contacts were split into blocks");
     }
 }
 

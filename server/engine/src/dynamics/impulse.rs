@@ -15,9 +15,14 @@
 //! sub-step's solve.
 //!
 //! Shapes do not rotate, so one contact per pair carries all of it.
+//!
+//! Contacts are kept in blocks of neighbouring moving bodies ([`blocks`]): a pass solves
+//! each block in the order its contacts were found, then the contacts between blocks, so
+//! the blocks of a pass may run on several threads with the one-thread bits.
 
 use glam::DVec2;
 
+use self::blocks::Bodies;
 use super::body::{Body, BodyKey};
 pub use super::pairs::Pair;
 use crate::geometry::separation;
@@ -64,6 +69,8 @@ pub struct ImpulseParams {
     /// Move bodies no contact pushed by the closed form of constant acceleration
     /// (`p += v_old h + a h²/2`) instead of symplectic Euler (`p += v_new h`).
     pub exact_flight: bool,
+    /// Threads the passes may use (the result is the same for any count: see [`blocks`]).
+    pub threads: u32,
 }
 
 /// One body as the solver streams it.
@@ -217,7 +224,8 @@ pub struct SolverBuffers {
     slotted: Vec<u32>,
     /// Velocity each body gains per second (gravity).
     accel: Vec<DVec2>,
-    contacts: Vec<Contact>,
+    /// The contacts by block, then the boundary's (see [`blocks`]).
+    buckets: Vec<Vec<Contact>>,
     /// Bodies a contact pushed in the sub-step (exact flight only).
     pushed: Vec<bool>,
 }
@@ -251,7 +259,7 @@ pub fn solve_frame(
         slot,
         slotted,
         accel: gain,
-        contacts,
+        buckets,
         pushed,
     } = buffers;
     if slot.len() < bodies.len() {
@@ -290,7 +298,13 @@ pub fn solve_frame(
     };
     gain.extend(movers.iter().map(|&i| gains(&bodies[i as usize])));
 
-    contacts.clear();
+    let moving = movers.len();
+    let block_count = blocks::block_count(moving);
+    buckets.resize_with(block_count + 1, Vec::new);
+    buckets.truncate(block_count + 1);
+    for bucket in buckets.iter_mut() {
+        bucket.clear();
+    }
     for (k, pair) in pairs.iter_mut().enumerate() {
         let (i, j) = (pair.a, pair.b);
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
@@ -336,7 +350,10 @@ pub fn solve_frame(
         // Only contacts that touch start from their last impulses.
         let warm = params.warm_starting && gap <= slop && old_n.dot(n) > 0.99;
         let (sa, sb_) = (place(i, sb), place(j, sb));
-        contacts.push(Contact {
+        let bucket = blocks::bucket_of(sa, sb_, moving, block_count, |s| {
+            sb[s as usize].inv_mass != 0.0
+        });
+        buckets[bucket].push(Contact {
             a: sa,
             b: sb_,
             normal: n,
@@ -371,91 +388,106 @@ pub fn solve_frame(
         (rigid, rigid)
     };
 
-    let mut bouncing = contacts.iter().any(|c| c.bounce > 0.0);
-    for step in 0..substeps {
-        for (body, &g) in sb.iter_mut().zip(gain.iter()) {
-            body.vel += g * h;
-        }
-        // Warm start: the impulses of the last sub-step (or frame) once more.
-        if params.warm_starting || step > 0 {
-            for c in contacts.iter() {
-                if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
-                    let t = DVec2::new(-c.normal.y, c.normal.x);
-                    apply(sb, c, c.normal * c.normal_impulse + t * c.tangent_impulse);
+    let threads = params.threads;
+    let mut bouncing = buckets.iter().flatten().any(|c| c.bounce > 0.0);
+    // The sub-steps run inside the pool, so each pass splits among threads already
+    // running (one hand-over a frame, not one a pass).
+    crate::parallel::install(threads, || {
+        for step in 0..substeps {
+            for (body, &g) in sb.iter_mut().zip(gain.iter()) {
+                body.vel += g * h;
+            }
+            // Warm start: the impulses of the last sub-step (or frame) once more.
+            if params.warm_starting || step > 0 {
+                in_blocks(threads, sb, buckets, |bodies, contacts| {
+                    for c in contacts.iter() {
+                        if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
+                            let t = DVec2::new(-c.normal.y, c.normal.x);
+                            apply(
+                                bodies,
+                                c,
+                                c.normal * c.normal_impulse + t * c.tangent_impulse,
+                            );
+                        }
+                    }
+                    0.0
+                });
+            }
+            let last_step = step + 1 == substeps;
+            for k in 0..params.iterations {
+                // Split impulses start from nothing each sub-step.
+                let fresh = params.split_impulses && k == 0;
+                report.passes += 1;
+                let args = (push, push_fixed, inv_h, params.split_impulses, fresh);
+                if last_step && params.relax_iterations == 0 && k + 1 == params.iterations {
+                    report.residual =
+                        in_blocks(threads, sb, buckets, |b, c| solve_pass::<true>(b, c, args)) * h;
+                } else {
+                    in_blocks(threads, sb, buckets, |b, c| solve_pass::<false>(b, c, args));
                 }
             }
-        }
-        let last_step = step + 1 == substeps;
-        for k in 0..params.iterations {
-            // Split impulses start from nothing each sub-step.
-            let fresh = params.split_impulses && k == 0;
-            report.passes += 1;
-            let args = (push, push_fixed, inv_h, params.split_impulses, fresh);
-            if last_step && params.relax_iterations == 0 && k + 1 == params.iterations {
-                report.residual = solve_pass::<true>(sb, contacts, args) * h;
+            if params.exact_flight {
+                pushed.clear();
+                pushed.resize(sb.len(), false);
+                for c in buckets.iter().flatten() {
+                    if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
+                        pushed[c.a as usize] = true;
+                        pushed[c.b as usize] = true;
+                    }
+                }
+                // In flight: `p += v_old h + g h²/2`, with `v_old = v - g h`.
+                for (k, (body, &g)) in sb.iter_mut().zip(gain.iter()).enumerate() {
+                    body.delta += (body.vel + body.pseudo) * h;
+                    if !pushed[k] {
+                        body.delta -= g * (0.5 * h * h);
+                    }
+                    body.pseudo = DVec2::ZERO;
+                }
             } else {
-                solve_pass::<false>(sb, contacts, args);
-            }
-        }
-        if params.exact_flight {
-            pushed.clear();
-            pushed.resize(sb.len(), false);
-            for c in contacts.iter() {
-                if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
-                    pushed[c.a as usize] = true;
-                    pushed[c.b as usize] = true;
+                for body in &mut sb[..movers.len()] {
+                    body.delta += (body.vel + body.pseudo) * h;
+                    body.pseudo = DVec2::ZERO;
                 }
             }
-            // In flight: `p += v_old h + g h²/2`, with `v_old = v - g h`.
-            for (k, (body, &g)) in sb.iter_mut().zip(gain.iter()).enumerate() {
-                body.delta += (body.vel + body.pseudo) * h;
-                if !pushed[k] {
-                    body.delta -= g * (0.5 * h * h);
+            for k in 0..params.relax_iterations {
+                report.passes += 1;
+                let args = (Bias::NONE, Bias::NONE, inv_h, false, false);
+                if last_step && k + 1 == params.relax_iterations {
+                    report.residual =
+                        in_blocks(threads, sb, buckets, |b, c| solve_pass::<true>(b, c, args)) * h;
+                } else {
+                    in_blocks(threads, sb, buckets, |b, c| solve_pass::<false>(b, c, args));
                 }
-                body.pseudo = DVec2::ZERO;
             }
-        } else {
-            for body in &mut sb[..movers.len()] {
-                body.delta += (body.vel + body.pseudo) * h;
-                body.pseudo = DVec2::ZERO;
+            // Restitution, once, for contacts that pushed: after the move, the normal velocity
+            // becomes the bounce of the approach speed the contact was found with (as Box2D
+            // applies it), so a contact that caught a body early still bounces it fully.
+            if !bouncing {
+                continue;
+            }
+            bouncing = false;
+            let bodies = Bodies::new(sb);
+            for c in buckets.iter_mut().flatten() {
+                if c.bounce > 0.0 && c.normal_impulse > 0.0 {
+                    let (a, b) = (c.a as usize, c.b as usize);
+                    let vn = (bodies.get(b).vel - bodies.get(a).vel).dot(c.normal);
+                    let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
+                    let p = c.normal * (total - c.normal_impulse);
+                    c.normal_impulse = total;
+                    apply(bodies, c, p);
+                    c.bounce = 0.0;
+                }
+                bouncing |= c.bounce > 0.0;
             }
         }
-        for k in 0..params.relax_iterations {
-            report.passes += 1;
-            let args = (Bias::NONE, Bias::NONE, inv_h, false, false);
-            if last_step && k + 1 == params.relax_iterations {
-                report.residual = solve_pass::<true>(sb, contacts, args) * h;
-            } else {
-                solve_pass::<false>(sb, contacts, args);
-            }
-        }
-        // Restitution, once, for contacts that pushed: after the move, the normal velocity
-        // becomes the bounce of the approach speed the contact was found with (as Box2D
-        // applies it), so a contact that caught a body early still bounces it fully.
-        if !bouncing {
-            continue;
-        }
-        bouncing = false;
-        for c in contacts.iter_mut() {
-            if c.bounce > 0.0 && c.normal_impulse > 0.0 {
-                let (a, b) = (c.a as usize, c.b as usize);
-                let vn = (sb[b].vel - sb[a].vel).dot(c.normal);
-                let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
-                let p = c.normal * (total - c.normal_impulse);
-                c.normal_impulse = total;
-                apply(sb, c, p);
-                c.bounce = 0.0;
-            }
-            bouncing |= c.bounce > 0.0;
-        }
-    }
+    });
 
     for (&i, s) in movers.iter().zip(sb.iter()) {
         let body = &mut bodies[i as usize];
         body.vel = s.vel;
         body.pos += s.delta;
     }
-    for c in contacts.iter() {
+    for c in buckets.iter().flatten() {
         let pair = &mut pairs[c.pair as usize];
         pair.normal = c.normal;
         pair.normal_impulse = c.normal_impulse;
@@ -483,7 +515,7 @@ pub fn solve_frame(
 /// and whether the split impulses start from nothing.
 #[inline]
 fn solve_pass<const MEASURE: bool>(
-    sb: &mut [SolverBody],
+    sb: Bodies,
     contacts: &mut [Contact],
     args: (Bias, Bias, f64, bool, bool),
 ) -> f64 {
@@ -494,7 +526,7 @@ fn solve_pass<const MEASURE: bool>(
             c.pseudo_impulse = 0.0;
         }
         let (a, b) = (c.a as usize, c.b as usize);
-        let (ba, bb) = (sb[a], sb[b]);
+        let (ba, bb) = (sb.get(a), sb.get(b));
         let dv = bb.vel - ba.vel;
         // Separation now: the frame's start plus how far the bodies moved since.
         let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
@@ -512,8 +544,8 @@ fn solve_pass<const MEASURE: bool>(
                 let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
                 let p = c.normal * (total - c.pseudo_impulse);
                 c.pseudo_impulse = total;
-                sb[a].pseudo -= p * ba.inv_mass;
-                sb[b].pseudo += p * bb.inv_mass;
+                sb.update(a, ba.inv_mass, |s| s.pseudo -= p * ba.inv_mass);
+                sb.update(b, bb.inv_mass, |s| s.pseudo += p * bb.inv_mass);
                 (0.0, 1.0, 0.0)
             } else if pen > 0.0 {
                 (
@@ -540,8 +572,8 @@ fn solve_pass<const MEASURE: bool>(
         let dt_imp = total_t - c.tangent_impulse;
         c.tangent_impulse = total_t;
         let p = c.normal * dn + t * dt_imp;
-        sb[a].vel -= p * ba.inv_mass;
-        sb[b].vel += p * bb.inv_mass;
+        sb.update(a, ba.inv_mass, |s| s.vel -= p * ba.inv_mass);
+        sb.update(b, bb.inv_mass, |s| s.vel += p * bb.inv_mass);
         if MEASURE && c.mass > 0.0 {
             largest = largest.max(dn.abs() / c.mass);
         }
@@ -549,11 +581,41 @@ fn solve_pass<const MEASURE: bool>(
     largest
 }
 
-fn apply(sb: &mut [SolverBody], c: &Contact, impulse: DVec2) {
-    let (ia, ib) = (sb[c.a as usize].inv_mass, sb[c.b as usize].inv_mass);
-    sb[c.a as usize].vel -= impulse * ia;
-    sb[c.b as usize].vel += impulse * ib;
+fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
+    let (a, b) = (c.a as usize, c.b as usize);
+    let (ia, ib) = (sb.get(a).inv_mass, sb.get(b).inv_mass);
+    sb.update(a, ia, |s| s.vel -= impulse * ia);
+    sb.update(b, ib, |s| s.vel += impulse * ib);
 }
+
+/// Runs `work` over every block's contacts (at once on up to `threads` threads when there
+/// are several blocks), then over the boundary's; returns the largest of its results.
+fn in_blocks(
+    threads: u32,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    work: impl Fn(Bodies, &mut [Contact]) -> f64 + Sync + Send,
+) -> f64 {
+    let bodies = Bodies::new(sb);
+    let (blocks, boundary) = buckets.split_at_mut(buckets.len() - 1);
+    let n = crate::parallel::effective(threads).min(blocks.len());
+    let run = |group: &mut [Vec<Contact>]| {
+        group
+            .iter_mut()
+            .fold(0.0_f64, |m, contacts| m.max(work(bodies, contacts)))
+    };
+    let largest = if n > 1 {
+        crate::parallel::run(threads, blocks::groups(blocks, n), run)
+            .into_iter()
+            .fold(0.0, f64::max)
+    } else {
+        run(blocks)
+    };
+    largest.max(run(boundary))
+}
+
+mod blocks;
+pub use blocks::{block_count, BLOCK_BODIES};
 
 #[cfg(test)]
 mod tests;

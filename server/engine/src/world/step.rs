@@ -330,6 +330,7 @@ impl World {
             dt: h,
             substeps: config.substeps,
             exact_flight: config.integrator == Integrator::Exact,
+            threads: config.threads,
         };
         let grid = config.broad_phase == BroadPhase::Grid;
         let mut pairs = if grid {

@@ -47,6 +47,7 @@ fn params() -> ImpulseParams {
         dt: 1.0 / 60.0,
         substeps: 1,
         exact_flight: false,
+        threads: 1,
     }
 }
 
