@@ -399,16 +399,14 @@ pub fn solve_frame(
             }
             // Warm start: the impulses of the last sub-step (or frame) once more.
             if params.warm_starting || step > 0 {
-                in_blocks(threads, sb, buckets, |bodies, contacts| {
-                    for c in contacts.iter() {
-                        if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
-                            let t = DVec2::new(-c.normal.y, c.normal.x);
-                            apply(
-                                bodies,
-                                c,
-                                c.normal * c.normal_impulse + t * c.tangent_impulse,
-                            );
-                        }
+                in_blocks(threads, sb, buckets, |bodies, c| {
+                    if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
+                        let t = DVec2::new(-c.normal.y, c.normal.x);
+                        apply(
+                            bodies,
+                            c,
+                            c.normal * c.normal_impulse + t * c.tangent_impulse,
+                        );
                     }
                     0.0
                 });
@@ -420,10 +418,13 @@ pub fn solve_frame(
                 report.passes += 1;
                 let args = (push, push_fixed, inv_h, params.split_impulses, fresh);
                 if last_step && params.relax_iterations == 0 && k + 1 == params.iterations {
-                    report.residual =
-                        in_blocks(threads, sb, buckets, |b, c| solve_pass::<true>(b, c, args)) * h;
+                    report.residual = in_blocks(threads, sb, buckets, |b, c| {
+                        solve_contact::<true>(b, c, args)
+                    }) * h;
                 } else {
-                    in_blocks(threads, sb, buckets, |b, c| solve_pass::<false>(b, c, args));
+                    in_blocks(threads, sb, buckets, |b, c| {
+                        solve_contact::<false>(b, c, args)
+                    });
                 }
             }
             if params.exact_flight {
@@ -453,10 +454,13 @@ pub fn solve_frame(
                 report.passes += 1;
                 let args = (Bias::NONE, Bias::NONE, inv_h, false, false);
                 if last_step && k + 1 == params.relax_iterations {
-                    report.residual =
-                        in_blocks(threads, sb, buckets, |b, c| solve_pass::<true>(b, c, args)) * h;
+                    report.residual = in_blocks(threads, sb, buckets, |b, c| {
+                        solve_contact::<true>(b, c, args)
+                    }) * h;
                 } else {
-                    in_blocks(threads, sb, buckets, |b, c| solve_pass::<false>(b, c, args));
+                    in_blocks(threads, sb, buckets, |b, c| {
+                        solve_contact::<false>(b, c, args)
+                    });
                 }
             }
             // Restitution, once, for contacts that pushed: after the move, the normal velocity
@@ -508,20 +512,19 @@ pub fn solve_frame(
     report
 }
 
-/// One velocity pass over every contact: the normal impulse that brings the normal
+/// One contact's share of a velocity pass: the normal impulse that brings the normal
 /// velocity to its target (never pulling), then friction within the Coulomb cone. With
-/// `MEASURE`, returns the largest normal velocity change it made (0 otherwise).
+/// `MEASURE`, returns the normal velocity change it made (0 otherwise).
 /// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses,
 /// and whether the split impulses start from nothing.
-#[inline]
-fn solve_pass<const MEASURE: bool>(
+#[inline(always)]
+fn solve_contact<const MEASURE: bool>(
     sb: Bodies,
-    contacts: &mut [Contact],
+    c: &mut Contact,
     args: (Bias, Bias, f64, bool, bool),
 ) -> f64 {
     let (push, push_fixed, inv_h, split, fresh) = args;
-    let mut largest: f64 = 0.0;
-    for c in contacts.iter_mut() {
+    {
         if fresh {
             c.pseudo_impulse = 0.0;
         }
@@ -575,10 +578,10 @@ fn solve_pass<const MEASURE: bool>(
         sb.update(a, ba.inv_mass, |s| s.vel -= p * ba.inv_mass);
         sb.update(b, bb.inv_mass, |s| s.vel += p * bb.inv_mass);
         if MEASURE && c.mass > 0.0 {
-            largest = largest.max(dn.abs() / c.mass);
+            return dn.abs() / c.mass;
         }
     }
-    largest
+    0.0
 }
 
 fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
@@ -588,21 +591,44 @@ fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
     sb.update(b, ib, |s| s.vel += impulse * ib);
 }
 
-/// Runs `work` over every block's contacts (at once on up to `threads` threads when there
-/// are several blocks), then over the boundary's; returns the largest of its results.
+/// Runs `work` on every contact of every block (at once on up to `threads` threads when
+/// there are several blocks), then of the boundary; returns the largest of its results.
+///
+/// Two blocks a thread runs are interleaved, a contact of one then a contact of the
+/// other: they touch different bodies, so the processor overlaps the two instead of
+/// waiting on each contact's result for the next (consecutive contacts of one block
+/// share a body). The bits are those of one block after the other (four-way interleaving
+/// measured no faster).
+#[inline(always)]
 fn in_blocks(
     threads: u32,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],
-    work: impl Fn(Bodies, &mut [Contact]) -> f64 + Sync + Send,
+    work: impl Fn(Bodies, &mut Contact) -> f64 + Sync + Send,
 ) -> f64 {
     let bodies = Bodies::new(sb);
     let (blocks, boundary) = buckets.split_at_mut(buckets.len() - 1);
     let n = crate::parallel::effective(threads).min(blocks.len());
     let run = |group: &mut [Vec<Contact>]| {
-        group
-            .iter_mut()
-            .fold(0.0_f64, |m, contacts| m.max(work(bodies, contacts)))
+        let mut largest = 0.0_f64;
+        for two in group.chunks_mut(2) {
+            let (x, y) = match two {
+                [x, y] => (x.as_mut_slice(), y.as_mut_slice()),
+                [x] => (x.as_mut_slice(), &mut [][..]),
+                _ => unreachable!("chunks of one or two"),
+            };
+            let common = x.len().min(y.len());
+            let (x, x_rest) = x.split_at_mut(common);
+            let (y, y_rest) = y.split_at_mut(common);
+            for (p, q) in x.iter_mut().zip(y.iter_mut()) {
+                largest = largest.max(work(bodies, p));
+                largest = largest.max(work(bodies, q));
+            }
+            for c in x_rest.iter_mut().chain(y_rest.iter_mut()) {
+                largest = largest.max(work(bodies, c));
+            }
+        }
+        largest
     };
     let largest = if n > 1 {
         crate::parallel::run(threads, blocks::groups(blocks, n), run)
