@@ -33,15 +33,18 @@ impl ParticleShape {
     fn project(&self, p: Vec2) -> Option<Vec2> {
         match *self {
             ParticleShape::Rect { centre, half } => {
-                let d = p - centre;
-                if d.x.abs() >= half.x || d.y.abs() >= half.y {
+                // The chapter's arithmetic (`system::rect_on`), to the last bit: inside the
+                // corners' open box, out through the nearer side.
+                let (min, max) = (centre - half, centre + half);
+                if !(p.x > min.x && p.x < max.x && p.y > min.y && p.y < max.y) {
                     return None;
                 }
+                let d = p - centre;
                 let (to_x, to_y) = (half.x - d.x.abs(), half.y - d.y.abs());
                 Some(if to_x < to_y {
-                    Vec2::new(centre.x + if d.x < 0.0 { -half.x } else { half.x }, p.y)
+                    Vec2::new(if d.x < 0.0 { min.x } else { max.x }, p.y)
                 } else {
-                    Vec2::new(p.x, centre.y + if d.y < 0.0 { -half.y } else { half.y })
+                    Vec2::new(p.x, if d.y < 0.0 { min.y } else { max.y })
                 })
             }
             ParticleShape::Circle { centre, radius } => {
@@ -73,6 +76,90 @@ pub struct ShapeGrid {
     /// Cell c holds `slots[starts[c]..starts[c + 1]]`, shape indices in increasing order.
     starts: Vec<u32>,
     slots: Vec<u32>,
+    /// Where any shape may be: one bit per fine cell ([`FINE`] to a side of a cell), set
+    /// where a shape's bounds reach. Most particles are far from every shape; this lets
+    /// the pass set them aside without a branch.
+    covered: Coverage,
+}
+
+/// Fine cells to a side of a grid cell in [`ShapeGrid::covered`] (fewer when the grid is
+/// large: at most [`MAX_FINE_BITS`] bits).
+const FINE: usize = 8;
+const MAX_FINE_BITS: usize = 1 << 22;
+
+/// A bitmap of fine cells.
+#[derive(Clone, Debug, Default)]
+struct Coverage {
+    bits: Vec<u64>,
+    /// 1 / the fine cell's side.
+    inv: f32,
+    cols: usize,
+    rows: usize,
+}
+
+impl Coverage {
+    fn new(origin: Vec2, cell: f32, cols: usize, rows: usize, shapes: &[ParticleShape]) -> Self {
+        let mut fine = FINE;
+        while fine > 1 && cols * fine * rows * fine > MAX_FINE_BITS {
+            fine /= 2;
+        }
+        let (cols, rows) = (cols * fine, rows * fine);
+        let mut c = Coverage {
+            // One more bit, never set: where points off the grid look.
+            bits: vec![0; (cols * rows + 1).div_ceil(64)],
+            inv: fine as f32 / cell,
+            cols,
+            rows,
+        };
+        for s in shapes {
+            let (a, b) = s.bounds();
+            let (x0, y0) = c.clamped(a - origin);
+            let (x1, y1) = c.clamped(b - origin);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let k = y * cols + x;
+                    c.bits[k / 64] |= 1 << (k % 64);
+                }
+            }
+        }
+        c
+    }
+
+    /// The fine cell of offset `d` from the origin, clamped to the grid.
+    fn clamped(&self, d: Vec2) -> (usize, usize) {
+        let f = d * self.inv;
+        let at = |v: f32, n: usize| (v.floor().max(0.0) as usize).min(n - 1);
+        (at(f.x, self.cols), at(f.y, self.rows))
+    }
+
+    /// Sifts a batch of positions: writes to `near` the places (in the batch) of those a
+    /// shape's bounds may hold, in order, and returns how many. Off the grid or NaN, a
+    /// position is not held. The cell of a point is never left of or below the cell of a
+    /// bound it is within (the mapping only grows), so a point inside a shape always
+    /// finds its bit set.
+    #[inline]
+    fn sift(&self, origin: Vec2, x: &[f32], y: &[f32], near: &mut [u16; BATCH]) -> usize {
+        // First every position's bit, in a loop without branches the compiler vectorises;
+        // then the bits looked up, and the held positions kept.
+        let mut bit = [0u32; BATCH];
+        let (cols, rows) = (self.cols as f32, self.rows as f32);
+        let off = (self.cols * self.rows) as u32;
+        for ((b, &px), &py) in bit.iter_mut().zip(x).zip(y) {
+            let fx = (px - origin.x) * self.inv;
+            let fy = (py - origin.y) * self.inv;
+            let on = (fx >= 0.0) & (fy >= 0.0) & (fx < cols) & (fy < rows);
+            let k = (fy as u32)
+                .wrapping_mul(self.cols as u32)
+                .wrapping_add(fx as u32);
+            *b = if on { k } else { off };
+        }
+        let mut n = 0;
+        for (i, &k) in bit[..x.len()].iter().enumerate() {
+            near[n] = i as u16;
+            n += ((self.bits[k as usize / 64] >> (k % 64)) & 1) as usize;
+        }
+        n
+    }
 }
 
 /// Cells a shape may cover before the grid gives up on binning.
@@ -146,6 +233,7 @@ impl ShapeGrid {
                 }
             }
         }
+        let covered = Coverage::new(lo, cell, cols, rows, &shapes);
         Some(ShapeGrid {
             shapes,
             origin: lo,
@@ -154,6 +242,7 @@ impl ShapeGrid {
             rows,
             starts,
             slots,
+            covered,
         })
     }
 
@@ -204,28 +293,48 @@ impl Particles {
     }
 }
 
-/// [`Particles::project_out_of_grid`] on positions `x`, `y`.
+/// Particles a pass sets aside at a time.
+const BATCH: usize = 256;
+
+/// [`Particles::project_out_of_grid`] on positions `x`, `y`: each batch of particles is
+/// first sifted without branches for those some shape's bounds may hold (most are not),
+/// then only those look up their shapes.
 fn grid_on(x: &mut [f32], y: &mut [f32], grid: &ShapeGrid) -> u64 {
     let mut moved = 0;
-    for i in 0..x.len() {
-        let mut p = Vec2::new(x[i], y[i]);
-        let mut next = 0u32;
-        'again: loop {
-            for &k in grid.near(p) {
-                if k < next {
-                    continue;
-                }
-                if let Some(q) = grid.shapes[k as usize].project(p) {
-                    p = q;
-                    moved += 1;
-                    next = k + 1;
-                    continue 'again;
-                }
-            }
-            break;
+    let mut near = [0u16; BATCH];
+    for base in (0..x.len()).step_by(BATCH) {
+        let end = (base + BATCH).min(x.len());
+        let n = grid
+            .covered
+            .sift(grid.origin, &x[base..end], &y[base..end], &mut near);
+        for &k in &near[..n] {
+            moved += project_one(x, y, base + k as usize, grid);
         }
-        x[i] = p.x;
-        y[i] = p.y;
     }
+    moved
+}
+
+/// Projects particle `i` out of the grid's shapes, in shape order; 1 per projection.
+#[inline]
+fn project_one(x: &mut [f32], y: &mut [f32], i: usize, grid: &ShapeGrid) -> u64 {
+    let mut moved = 0;
+    let mut p = Vec2::new(x[i], y[i]);
+    let mut next = 0u32;
+    'again: loop {
+        for &k in grid.near(p) {
+            if k < next {
+                continue;
+            }
+            if let Some(q) = grid.shapes[k as usize].project(p) {
+                p = q;
+                moved += 1;
+                next = k + 1;
+                continue 'again;
+            }
+        }
+        break;
+    }
+    x[i] = p.x;
+    y[i] = p.y;
     moved
 }

@@ -490,11 +490,33 @@ mod tests {
                 })
                 .collect();
             let mut a = Particles::default();
-            for _ in 0..2000 {
-                let pos = Vec2::new(
-                    rng.random_range(-10.0..110.0),
-                    rng.random_range(-10.0..70.0),
-                );
+            // Random places, and the places a sift could get wrong: a hair inside each
+            // shape's edges and corners, on them, and nowhere (NaN).
+            let mut places: Vec<Vec2> = (0..2000)
+                .map(|_| {
+                    Vec2::new(
+                        rng.random_range(-10.0..110.0),
+                        rng.random_range(-10.0..70.0),
+                    )
+                })
+                .collect();
+            for s in &shapes {
+                let (centre, half) = match *s {
+                    ParticleShape::Rect { centre, half } => (centre, half),
+                    ParticleShape::Circle { centre, radius } => (centre, Vec2::splat(radius)),
+                };
+                for (sx, sy) in [(-1.0, -1.0), (1.0, 1.0), (-1.0, 0.0), (0.0, 1.0)] {
+                    let edge = centre + half * Vec2::new(sx, sy);
+                    let inward = |v: f32, c: f32| if v > c { v.next_down() } else { v.next_up() };
+                    places.push(edge);
+                    places.push(Vec2::new(
+                        inward(edge.x, centre.x),
+                        inward(edge.y, centre.y),
+                    ));
+                }
+            }
+            places.push(Vec2::NAN);
+            for pos in places {
                 a.push(
                     &ParticleDef {
                         pos,
@@ -515,8 +537,16 @@ mod tests {
             }
             let grid = ShapeGrid::build(shapes).expect("binnable");
             let by_grid = b.project_out_of_grid(&grid);
-            assert_eq!(a.x, b.x, "round {round}");
-            assert_eq!(a.y, b.y, "round {round}");
+            // By bits (a NaN stays the same NaN), naming the first particle that differs.
+            let bits = |p: &Particles| -> Vec<(u32, u32)> {
+                p.x.iter()
+                    .zip(&p.y)
+                    .map(|(x, y)| (x.to_bits(), y.to_bits()))
+                    .collect()
+            };
+            let (want, got) = (bits(&a), bits(&b));
+            let first = want.iter().zip(&got).position(|(w, g)| w != g);
+            assert_eq!(first, None, "round {round}: particle {first:?} differs");
             assert_eq!(by_shape, by_grid);
         }
     }
