@@ -114,11 +114,12 @@ pub fn cells(scene: &'static str, report: &Report) -> Vec<Cell> {
         .collect()
 }
 
+/// Each scene's reference, described: (scene, line).
+pub type References = Vec<(&'static str, String)>;
+
 /// Every scene of the report, each with its reference's line; `progress` is told each
 /// step of every run.
-pub fn run_all(
-    progress: &indicatif::ProgressBar,
-) -> Result<(Vec<Cell>, Vec<(&'static str, String)>)> {
+pub fn run_all(progress: &indicatif::ProgressBar) -> Result<(Vec<Cell>, References)> {
     let mut all = Vec::new();
     let mut references = Vec::new();
     for &(scene, ..) in SCENES {

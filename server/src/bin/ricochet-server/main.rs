@@ -240,6 +240,11 @@ fn run_bench(
             rows.push(bench::measure(scenes, case, label, overrides, n)?);
             progress.inc(1);
         }
+        // Beside the free particles, their update's memory traffic without its arithmetic.
+        if case.scene == "bench/particles-1m-free.toml" {
+            let particles = rows.last().map_or(1_000_000, |r| r.particles).max(1);
+            rows.push(bench::memory_only(particles, case.steps));
+        }
     }
     progress.finish_and_clear();
     let table = bench::to_markdown(&rows);
@@ -279,7 +284,8 @@ fn scene_tradeoff(out: PathBuf, args: SceneTradeoffArgs) -> Result<()> {
         Some(p) => read_inputs(p)?,
         None => Vec::new(),
     };
-    if !(args.tolerance > 0.0) {
+    // NaN fails this too.
+    if args.tolerance.is_nan() || args.tolerance <= 0.0 {
         anyhow::bail!("--tolerance must be above 0 (got {})", args.tolerance);
     }
     let candidates = if args.candidates.is_empty() {
@@ -324,7 +330,7 @@ fn scene_tradeoff(out: PathBuf, args: SceneTradeoffArgs) -> Result<()> {
         );
         let report = measure(subject, candidates.clone(), &opts, &progress)?;
         progress.finish_and_clear();
-        print!("{}\n", report.to_text());
+        println!("{}", report.to_text());
         let stem = path
             .file_stem()
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
