@@ -317,57 +317,6 @@ pub fn measure(
     })
 }
 
-/// The million free particles' update with its arithmetic taken out: the same ten f32
-/// arrays of `n` read and six written back (64 bytes a particle), in the same two loops
-/// (positions and velocities with gravity and drag; then life and size with the size
-/// factor), each element changed by one addition, one thread. Beside the update's own
-/// row it says how much of the update is moving memory: where the two are close, the
-/// arithmetic is free and only fewer bytes would go faster.
-pub fn memory_only(n: usize, passes: u64) -> Row {
-    // Values other than zero, so every page is written before timing starts.
-    let array = |k: usize| vec![1.0 + k as f32; n];
-    let (mut x, mut y, mut vx, mut vy, mut life, mut size) =
-        (array(0), array(1), array(2), array(3), array(4), array(5));
-    let (ax, ay, drag, factor) = (array(6), array(7), array(8), array(9));
-    let mut times = Vec::with_capacity(passes as usize);
-    for _ in 0..passes {
-        let t = Instant::now();
-        // One length for all, so the loops run without bounds checks, vectorised.
-        let (x, y, vx, vy) = (&mut x[..n], &mut y[..n], &mut vx[..n], &mut vy[..n]);
-        let (ax, ay, drag) = (&ax[..n], &ay[..n], &drag[..n]);
-        for i in 0..n {
-            vx[i] += ax[i];
-            vy[i] += ay[i];
-            x[i] += drag[i];
-            y[i] += drag[i];
-        }
-        let (life, size, factor) = (&mut life[..n], &mut size[..n], &factor[..n]);
-        for i in 0..n {
-            life[i] += factor[i];
-            size[i] += factor[i];
-        }
-        std::hint::black_box((x, y, vx, vy, life, size));
-        times.push(t.elapsed().as_secs_f64() * 1e3);
-    }
-    times.sort_by(f64::total_cmp);
-    let ms_median = percentile(&times, 0.5);
-    Row {
-        scene: format!("machine: the update's memory alone, {n} particles"),
-        setting: "same arrays and loops, one addition each, one thread".into(),
-        overrides: String::new(),
-        bodies: 0,
-        particles: n,
-        steps: passes,
-        ms_median,
-        ms_p10: percentile(&times, 0.1),
-        ms_p90: percentile(&times, 0.9),
-        worst_drift: None,
-        final_drift: None,
-        ns_per_particle: Some(ms_median * 1e6 / n as f64),
-        nan: false,
-    }
-}
-
 /// The rows as CSV.
 pub fn to_csv(rows: &[Row]) -> Result<String> {
     let mut out = csv::Writer::from_writer(Vec::new());
@@ -399,6 +348,31 @@ pub fn to_markdown(rows: &[Row]) -> String {
             if r.nan { " NaN" } else { "" },
             opt(r.final_drift, 4),
             opt(r.ns_per_particle, 2),
+        );
+    }
+    out
+}
+
+/// The speed-up of each scene measured both as shipped (one thread) and with
+/// `threads=2` alone, as a Markdown table (empty when none was).
+pub fn speedups(rows: &[Row]) -> String {
+    let mut out = String::new();
+    for two in rows.iter().filter(|r| r.overrides == "threads=2") {
+        let Some(one) = rows
+            .iter()
+            .find(|r| r.scene == two.scene && r.overrides.is_empty())
+        else {
+            continue;
+        };
+        if out.is_empty() {
+            out += "| scene | one thread, median ms/step | 2 threads | speed-up |\n|---|---|---|---|\n";
+        }
+        out += &format!(
+            "| {} | {:.4} | {:.4} | {:.2}x |\n",
+            two.scene,
+            one.ms_median,
+            two.ms_median,
+            one.ms_median / two.ms_median
         );
     }
     out
@@ -443,11 +417,31 @@ mod tests {
     }
 
     #[test]
-    fn the_memory_alone_reports_per_particle() {
-        let row = memory_only(10_000, 5);
-        assert_eq!((row.particles, row.steps), (10_000, 5));
-        let ns = row.ns_per_particle.unwrap();
-        assert!(ns > 0.0 && ns.is_finite(), "{ns}");
-        assert!((ns - row.ms_median * 1e6 / 10_000.0).abs() < 1e-9);
+    fn speed_ups_pair_each_two_thread_row_with_its_shipped_row() {
+        let row = |scene: &str, overrides: &str, ms: f64| Row {
+            scene: scene.into(),
+            setting: String::new(),
+            overrides: overrides.into(),
+            bodies: 0,
+            particles: 0,
+            steps: 1,
+            ms_median: ms,
+            ms_p10: ms,
+            ms_p90: ms,
+            worst_drift: None,
+            final_drift: None,
+            ns_per_particle: None,
+            nan: false,
+        };
+        let rows = [
+            row("a", "", 3.0),
+            row("a", "impulse_iterations=4", 9.0),
+            row("a", "threads=2", 2.0),
+            row("b", "threads=2", 1.0),
+        ];
+        let table = speedups(&rows);
+        assert!(table.contains("| a | 3.0000 | 2.0000 | 1.50x |"), "{table}");
+        assert!(!table.contains("| b |"), "no shipped row of b: {table}");
+        assert_eq!(speedups(&rows[..2]), "");
     }
 }

@@ -240,14 +240,13 @@ fn run_bench(
             rows.push(bench::measure(scenes, case, label, overrides, n)?);
             progress.inc(1);
         }
-        // Beside the free particles, their update's memory traffic without its arithmetic.
-        if case.scene == "bench/particles-1m-free.toml" {
-            let particles = rows.last().map_or(1_000_000, |r| r.particles).max(1);
-            rows.push(bench::memory_only(particles, case.steps));
-        }
     }
     progress.finish_and_clear();
-    let table = bench::to_markdown(&rows);
+    let mut table = bench::to_markdown(&rows);
+    let speedups = bench::speedups(&rows);
+    if !speedups.is_empty() {
+        table += &format!("\nSpeed-up on 2 threads (same run, same bits):\n\n{speedups}");
+    }
     println!("{table}");
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
