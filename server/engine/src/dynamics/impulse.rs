@@ -547,8 +547,8 @@ fn solve_contact<const MEASURE: bool>(
                 let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
                 let p = c.normal * (total - c.pseudo_impulse);
                 c.pseudo_impulse = total;
-                sb.update(a, ba.inv_mass, |s| s.pseudo -= p * ba.inv_mass);
-                sb.update(b, bb.inv_mass, |s| s.pseudo += p * bb.inv_mass);
+                sb.update(a, |s| s.pseudo -= p * ba.inv_mass);
+                sb.update(b, |s| s.pseudo += p * bb.inv_mass);
                 (0.0, 1.0, 0.0)
             } else if pen > 0.0 {
                 (
@@ -575,8 +575,8 @@ fn solve_contact<const MEASURE: bool>(
         let dt_imp = total_t - c.tangent_impulse;
         c.tangent_impulse = total_t;
         let p = c.normal * dn + t * dt_imp;
-        sb.update(a, ba.inv_mass, |s| s.vel -= p * ba.inv_mass);
-        sb.update(b, bb.inv_mass, |s| s.vel += p * bb.inv_mass);
+        sb.update(a, |s| s.vel -= p * ba.inv_mass);
+        sb.update(b, |s| s.vel += p * bb.inv_mass);
         if MEASURE && c.mass > 0.0 {
             return dn.abs() / c.mass;
         }
@@ -587,8 +587,8 @@ fn solve_contact<const MEASURE: bool>(
 fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
     let (a, b) = (c.a as usize, c.b as usize);
     let (ia, ib) = (sb.get(a).inv_mass, sb.get(b).inv_mass);
-    sb.update(a, ia, |s| s.vel -= impulse * ia);
-    sb.update(b, ib, |s| s.vel += impulse * ib);
+    sb.update(a, |s| s.vel -= impulse * ia);
+    sb.update(b, |s| s.vel += impulse * ib);
 }
 
 /// Runs `work` on every contact of every block (at once on up to `threads` threads when

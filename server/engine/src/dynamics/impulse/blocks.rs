@@ -78,20 +78,20 @@ impl Bodies {
 
     #[inline(always)]
     pub fn get(&self, i: usize) -> SolverBody {
-        debug_assert!(i < self.len);
+        assert!(i < self.len);
         // SAFETY: in bounds (above); no other thread writes body `i` while this one runs
         // (the block invariants of the type).
         unsafe { *self.ptr.add(i) }
     }
 
-    /// Body `i` to change, if it moves (a body with `inv_mass` 0 is left alone).
+    /// Body `i` to change, if it moves (a body whose `inv_mass` is 0 is left alone: it is
+    /// the body's own, read here, so no caller can make a static body written).
     #[inline(always)]
-    pub fn update(&self, i: usize, inv_mass: f64, change: impl FnOnce(&mut SolverBody)) {
-        debug_assert!(i < self.len);
-        if inv_mass != 0.0 {
-            // SAFETY: in bounds (above); a moving body is written by the contacts of one
-            // block only, which run on one thread, one after the other (the type's
-            // invariants), so this is the only reference to it.
+    pub fn update(&self, i: usize, change: impl FnOnce(&mut SolverBody)) {
+        if self.get(i).inv_mass != 0.0 {
+            // SAFETY: in bounds (`get` checked it); a moving body is written by the
+            // contacts of one block only, which run on one thread, one after the other
+            // (the type's invariants), so this is the only reference to it.
             change(unsafe { &mut *self.ptr.add(i) });
         }
     }
@@ -135,6 +135,29 @@ mod tests {
         assert_eq!(bucket_of(60, 150, 100, 4, moves), 2);
         assert_eq!(bucket_of(150, 99, 100, 4, moves), 3);
         assert_eq!(bucket_of(150, 151, 100, 4, moves), 4);
+    }
+
+    #[test]
+    fn a_body_that_does_not_move_is_never_written() {
+        let body = |inv_mass| SolverBody {
+            vel: glam::DVec2::ZERO,
+            pseudo: glam::DVec2::ZERO,
+            delta: glam::DVec2::ZERO,
+            inv_mass,
+        };
+        let mut sb = vec![body(1.0), body(0.0)];
+        let view = Bodies::new(&mut sb);
+        for i in 0..2 {
+            view.update(i, |s| s.vel.x = 5.0);
+        }
+        assert_eq!((sb[0].vel.x, sb[1].vel.x), (5.0, 0.0));
+    }
+
+    #[test]
+    #[should_panic]
+    fn a_slot_past_the_bodies_is_refused() {
+        let mut sb = Vec::new();
+        Bodies::new(&mut sb).get(0);
     }
 
     #[test]
