@@ -226,6 +226,9 @@ pub struct SolverBuffers {
     accel: Vec<DVec2>,
     /// The contacts by block, then the boundary's (see [`blocks`]).
     buckets: Vec<Vec<Contact>>,
+    /// Buckets of the runs of pairs after the first when contacts are found on several
+    /// threads.
+    found: Vec<Vec<Vec<Contact>>>,
     /// Bodies a contact pushed in the sub-step (exact flight only).
     pushed: Vec<bool>,
 }
@@ -245,7 +248,7 @@ pub fn solve_frame(
     params: ImpulseParams,
     buffers: &mut SolverBuffers,
     movers: &[u32],
-    accel: impl Fn(&Body) -> DVec2,
+    accel: impl Fn(&Body) -> DVec2 + Sync,
     flagged: &mut Vec<u32>,
 ) -> ImpulseReport {
     let frame_dt = params.dt;
@@ -260,6 +263,7 @@ pub fn solve_frame(
         slotted,
         accel: gain,
         buckets,
+        found,
         pushed,
     } = buffers;
     if slot.len() < bodies.len() {
@@ -305,73 +309,47 @@ pub fn solve_frame(
     for bucket in buckets.iter_mut() {
         bucket.clear();
     }
-    for (k, pair) in pairs.iter_mut().enumerate() {
-        let (i, j) = (pair.a, pair.b);
-        let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
-        let (old_n, jn, jt) = (pair.normal, pair.normal_impulse, pair.tangent_impulse);
-        pair.normal_impulse = 0.0;
-        pair.tangent_impulse = 0.0;
-        if a.inv_mass + b.inv_mass == 0.0 {
-            continue;
+    // Every body of a pair gets its place first (the movers have theirs), so that the
+    // contacts can then be found on several threads, each pair on its own.
+    for pair in pairs.iter() {
+        place(pair.a, sb);
+        place(pair.b, sb);
+    }
+    let find = Finder {
+        bodies,
+        slot,
+        moving,
+        block_count,
+        params,
+        gains: &gains,
+    };
+    // Contiguous runs of pairs, each filling its own buckets: the first run the solver's,
+    // the others spares appended after it in order, so every bucket lists its contacts
+    // in the order of the pairs whatever the thread count.
+    let (runs, size) = crate::parallel::chunking(params.threads, pairs.len());
+    found.resize_with(runs.saturating_sub(1), Vec::new);
+    for spare in found.iter_mut() {
+        spare.resize_with(block_count + 1, Vec::new);
+        spare.truncate(block_count + 1);
+        spare.iter_mut().for_each(Vec::clear);
+    }
+    let outs = std::iter::once(&mut buckets[..]).chain(found.iter_mut().map(|f| &mut f[..]));
+    let work: Vec<_> = pairs
+        .chunks_mut(size.max(1))
+        .enumerate()
+        .zip(outs)
+        .collect();
+    let partial = crate::parallel::run(params.threads, work, |((run, pairs), out)| {
+        find.contacts(pairs, run * size, out)
+    });
+    for (contacts, deepest) in partial {
+        report.contacts += contacts;
+        report.deepest = report.deepest.max(deepest);
+    }
+    for spare in found.iter_mut() {
+        for (bucket, more) in buckets.iter_mut().zip(spare.iter()) {
+            bucket.extend_from_slice(more);
         }
-        let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
-        let rel = b.vel - a.vel;
-        let size = a
-            .shape
-            .half_extents()
-            .min_element()
-            .min(b.shape.half_extents().min_element())
-            * 2.0;
-        // Too far apart to meet within the frame: no contact.
-        if gap > rel.length() * frame_dt + 0.1 * size {
-            continue;
-        }
-        if gap <= 0.0 {
-            report.contacts += 1;
-            report.deepest = report.deepest.max(-gap);
-        }
-        // The approach speed at impact: a pair found apart closes its gap under its relative
-        // acceleration first, so it meets faster (or slower) than it was found moving
-        // (`v_i² = v² - 2 a s`, energy along the normal). Bouncing with the speed found
-        // would lose the energy gained over the gap at every bounce.
-        let approach = rel.dot(n);
-        let impact = if gap > 0.0 && approach < 0.0 {
-            let closing = approach * approach - 2.0 * (gains(b) - gains(a)).dot(n) * gap;
-            -closing.max(0.0).sqrt()
-        } else {
-            approach
-        };
-        let bounce = if impact < -RESTITUTION_SPEED {
-            -a.restitution.min(b.restitution) * impact
-        } else {
-            0.0
-        };
-        let slop = params.slop * size;
-        // Only contacts that touch start from their last impulses.
-        let warm = params.warm_starting && gap <= slop && old_n.dot(n) > 0.99;
-        let (sa, sb_) = (place(i, sb), place(j, sb));
-        let bucket = blocks::bucket_of(sa, sb_, moving, block_count, |s| {
-            sb[s as usize].inv_mass != 0.0
-        });
-        buckets[bucket].push(Contact {
-            a: sa,
-            b: sb_,
-            normal: n,
-            mass: 1.0 / (a.inv_mass + b.inv_mass),
-            friction: (a.friction * b.friction).sqrt(),
-            gap,
-            slop,
-            bounce,
-            max_push: MAX_PUSH_OUT * size,
-            normal_impulse: if warm { jn } else { 0.0 },
-            tangent_impulse: if warm { jt } else { 0.0 },
-            pseudo_impulse: 0.0,
-            pair: k as u32,
-            // A bouncing pair closes its gap, however small, before it bounces: bouncing
-            // from short of the surface would give it the gap's height for nothing.
-            speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
-            fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
-        });
     }
 
     let (push, push_fixed) = if params.contact_hertz > 0.0 {
@@ -510,6 +488,104 @@ pub fn solve_frame(
         slot[i as usize] = UNSLOTTED;
     }
     report
+}
+
+/// What finding a frame's contacts reads: the bodies, their places among the solver's
+/// bodies (all given), the blocks, the frame's settings and what each body gains per second.
+struct Finder<'a, G> {
+    bodies: &'a [Body],
+    slot: &'a [u32],
+    moving: usize,
+    block_count: usize,
+    params: ImpulseParams,
+    gains: &'a G,
+}
+
+impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
+    /// The contacts of `pairs` (the run starting at pair `first`), each pushed to its
+    /// bucket in `out`; each pair's impulses are taken (the solver leaves this frame's).
+    /// Returns the touching contacts and the deepest penetration among them.
+    fn contacts(&self, pairs: &mut [Pair], first: usize, out: &mut [Vec<Contact>]) -> (u64, f64) {
+        let (bodies, params, gains) = (self.bodies, self.params, self.gains);
+        let frame_dt = params.dt;
+        let (mut touching, mut deepest) = (0, 0.0_f64);
+        for (k, pair) in pairs.iter_mut().enumerate() {
+            let (i, j) = (pair.a, pair.b);
+            let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
+            let (old_n, jn, jt) = (pair.normal, pair.normal_impulse, pair.tangent_impulse);
+            pair.normal_impulse = 0.0;
+            pair.tangent_impulse = 0.0;
+            if a.inv_mass + b.inv_mass == 0.0 {
+                continue;
+            }
+            let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
+            let rel = b.vel - a.vel;
+            let size = a
+                .shape
+                .half_extents()
+                .min_element()
+                .min(b.shape.half_extents().min_element())
+                * 2.0;
+            // Too far apart to meet within the frame: no contact.
+            if gap > rel.length() * frame_dt + 0.1 * size {
+                continue;
+            }
+            if gap <= 0.0 {
+                touching += 1;
+                deepest = deepest.max(-gap);
+            }
+            // The approach speed at impact: a pair found apart closes its gap under its
+            // relative acceleration first, so it meets faster (or slower) than it was found
+            // moving (`v_i² = v² - 2 a s`, energy along the normal). Bouncing with the
+            // speed found would lose the energy gained over the gap at every bounce.
+            let approach = rel.dot(n);
+            let impact = if gap > 0.0 && approach < 0.0 {
+                let closing = approach * approach - 2.0 * (gains(b) - gains(a)).dot(n) * gap;
+                -closing.max(0.0).sqrt()
+            } else {
+                approach
+            };
+            let bounce = if impact < -RESTITUTION_SPEED {
+                -a.restitution.min(b.restitution) * impact
+            } else {
+                0.0
+            };
+            let slop = params.slop * size;
+            // Only contacts that touch start from their last impulses.
+            let warm = params.warm_starting && gap <= slop && old_n.dot(n) > 0.99;
+            let (sa, sb) = (self.slot[i as usize], self.slot[j as usize]);
+            let bucket = blocks::bucket_of(sa, sb, self.moving, self.block_count, |s| {
+                // Moving: a mover (the first slots) that is not frozen for the step.
+                (s as usize) < self.moving
+                    && if s == sa {
+                        a.inv_mass != 0.0
+                    } else {
+                        b.inv_mass != 0.0
+                    }
+            });
+            out[bucket].push(Contact {
+                a: sa,
+                b: sb,
+                normal: n,
+                mass: 1.0 / (a.inv_mass + b.inv_mass),
+                friction: (a.friction * b.friction).sqrt(),
+                gap,
+                slop,
+                bounce,
+                max_push: MAX_PUSH_OUT * size,
+                normal_impulse: if warm { jn } else { 0.0 },
+                tangent_impulse: if warm { jt } else { 0.0 },
+                pseudo_impulse: 0.0,
+                pair: (first + k) as u32,
+                // A bouncing pair closes its gap, however small, before it bounces:
+                // bouncing from short of the surface would give it the gap's height for
+                // nothing.
+                speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
+                fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
+            });
+        }
+        (touching, deepest)
+    }
 }
 
 /// One contact's share of a velocity pass: the normal impulse that brings the normal
