@@ -47,6 +47,10 @@ struct Header {
     overrides: Vec<String>,
     /// The limits as TOML (which, unlike JSON, spells an infinite work limit).
     limits: String,
+    /// Why the overrides include a setting picked for an accuracy target (what `info`
+    /// reports), when one was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    accuracy: Option<String>,
 }
 
 #[derive(Clone, Serialize, Deserialize)]
@@ -106,6 +110,7 @@ impl Journal {
             },
             overrides: opts.overrides.clone(),
             limits: toml::to_string(&opts.limits).expect("limits serialise"),
+            accuracy: host.accuracy.clone(),
         };
         journal.write(&serde_json::to_string(&header).expect("headers serialise"))?;
         Ok(journal)
@@ -251,6 +256,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     opts.world = header.world.clone();
     let mut host = Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
         .with_context(|| format!("{}: the journal's scene", at(1)))?;
+    host.accuracy = header.accuracy.clone();
     // Where the lines of a frame start (byte offset, line number), about once a second of
     // frames, only as far back as the window of remembered ids: the second pass starts at
     // the last mark before the window.
@@ -473,6 +479,29 @@ mod tests {
         // Resumed once more, the journal is whole: the same frame again.
         drop(resumed);
         assert_eq!(resume(&path, &options()).unwrap().host.world.frame(), frame);
+    }
+
+    #[test]
+    fn a_resumed_server_still_says_why_its_setting_was_picked() {
+        let dir = tempfile::tempdir().unwrap();
+        let (picked, plain) = (dir.path().join("picked.journal"), dir.path().join("plain"));
+        let opts = options();
+        let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/scenes/bounce.toml");
+        let text = std::fs::read_to_string(scene).unwrap();
+        let mut host = Hosted::load(text, PathBuf::from(scene), &opts).unwrap();
+        host.accuracy = Some("picked impulses 8 it for a target of 0.01".into());
+        Journal::create(&picked, "journaled", &host, &opts).unwrap();
+        let resumed = resume(&picked, &options()).unwrap();
+        assert_eq!(resumed.host.info().accuracy, host.accuracy);
+        // A journal of a server without a target says none (and has no such field).
+        journal_of(&plain, 1);
+        assert!(!std::fs::read_to_string(&plain)
+            .unwrap()
+            .contains("accuracy"));
+        assert_eq!(
+            resume(&plain, &options()).unwrap().host.info().accuracy,
+            None
+        );
     }
 
     #[test]
