@@ -330,6 +330,15 @@ fn the_python_client_sends_commands_and_decodes_frames() {
     let out = ok(&py(&["send", "spawn_minion", "at=[100,60]"]));
     let reply: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
     let id = reply["ids"][0].as_str().unwrap().to_string();
+    // Each Python process names itself as the sender: the same request id from two of them
+    // is two requests (the server remembers answers per sender), each applied; without a
+    // sender both would be the anonymous one and the second would get the first's answer.
+    let same = r#"{"do":"spawn_minion","at":[100,60],"id":"python-same-id"}"#;
+    let answer = |out: &std::process::Output| -> serde_json::Value {
+        serde_json::from_str(ok(out).trim()).unwrap()
+    };
+    let (first, second) = (answer(&py(&["send", same])), answer(&py(&["send", same])));
+    assert_ne!(first["ids"], second["ids"], "{first} {second}");
     let refused = py(&["send", "--raw", "not json"]);
     assert_eq!(refused.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&refused.stdout).contains("not JSON"));

@@ -217,14 +217,31 @@ def servers(session, world, timeout):
     return sorted(zids)
 
 
-def server_replies(session, world, key, timeout, payload=None):
+class Sender:
+    """Names this client as the sender of its requests, as the Rust client does: zenoh's
+    source info carries the id of a publisher this session declares (on the world's
+    command key) and a sequence number. The server keeps a rate bucket and the remembered
+    answers per sender; requests without one share the anonymous sender's."""
+
+    def __init__(self, session, world):
+        self.publisher = session.declare_publisher(f"ricochet/{world}/cmd")
+        self.sequence = 0
+
+    def source_info(self):
+        import zenoh
+        self.sequence += 1
+        return zenoh.SourceInfo(self.publisher.id, self.sequence)
+
+
+def server_replies(session, world, key, timeout, payload=None, sender=None):
     """The replies to a query on `key` from the world's server only: the peer holding the
     world's liveliness token. Replies from other peers are skipped with a warning; a world
-    whose token two peers hold is refused."""
+    whose token two peers hold is refused. With a `Sender`, the query says who sent it."""
     import zenoh
     known = None
+    extra = {"source_info": sender.source_info()} if sender is not None else {}
     for reply in session.get(key, payload=payload, timeout=timeout,
-                             consolidation=zenoh.ConsolidationMode.NONE):
+                             consolidation=zenoh.ConsolidationMode.NONE, **extra):
         zid = str(reply.replier_id.zid) if reply.replier_id is not None else None
         if known is None or zid not in known:
             known = servers(session, world, timeout)
@@ -238,10 +255,12 @@ def server_replies(session, world, key, timeout, payload=None):
                   f"hold the world's token", file=sys.stderr)
 
 
-def request(session, world, command, timeout, attempts=3):
+def request(session, world, command, timeout, attempts=3, sender=None):
     """Sends a command and returns the reply. A command (a dict) gets a random request id,
     so it is sent again, up to `attempts` times, while no answer comes: the server
-    applies it once and answers every copy. Raw bytes are sent once, as they are."""
+    applies it once and answers every copy (of the same sender: give a `Sender`, or every
+    client without one is the same anonymous sender to the server). Raw bytes are sent
+    once, as they are."""
     if isinstance(command, (bytes, bytearray)):
         payload, attempts = bytes(command), 1
     else:
@@ -250,7 +269,8 @@ def request(session, world, command, timeout, attempts=3):
         payload = json.dumps(command).encode()
     for attempt in range(1, attempts + 1):
         began = time.monotonic()
-        for reply in server_replies(session, world, f"ricochet/{world}/rpc", timeout, payload):
+        for reply in server_replies(session, world, f"ricochet/{world}/rpc", timeout, payload,
+                                    sender):
             sample = reply.ok if reply.ok is not None else reply.err
             return json.loads(sample.payload.to_bytes())
         if attempt < attempts:
@@ -314,7 +334,8 @@ def main():
     try:
         if args.cmd == "send":
             command = " ".join(args.command).encode() if args.raw else parse_command(args.command)
-            reply = request(session, args.world, command, args.timeout)
+            reply = request(session, args.world, command, args.timeout,
+                            sender=Sender(session, args.world))
             print(json.dumps(reply), flush=True)
             return 0 if reply.get("ok") else 1
         watch(session, args.world, args.frames, args.seconds, args.timeout)
