@@ -60,6 +60,57 @@ fn a_retried_request_is_answered_again_not_applied_twice() {
 }
 
 #[test]
+fn dropped_fire_and_forget_commands_are_summed_up_in_an_event_not_echoed() {
+    let server = Server::start("impulse.toml", "unanswered", &[]);
+    let client = server.client();
+    let events = client.events().unwrap();
+    // Commands sent without a reply key, each over the size limit: nobody can be answered.
+    let sent = 40;
+    let oversized = vec![b' '; 70_000];
+    for _ in 0..sent {
+        client.send_raw(oversized.clone()).unwrap();
+    }
+    // The drops come back summed up, at most an event a second however many were sent:
+    // the sums add up to what the server counted refused (zenoh itself may drop a put on
+    // the way; what the server saw is what it sums).
+    let began = Instant::now();
+    let (mut summaries, mut dropped) = (0u64, 0u64);
+    loop {
+        if let Ok(Some(sample)) = events.recv_timeout(Duration::from_millis(100)) {
+            let event: ricochet_protocol::command::Event =
+                serde_json::from_slice(&sample.payload().to_bytes()).unwrap();
+            if let Some(error) = event.error.filter(|e| e.starts_with("dropped ")) {
+                assert!(!event.ok && event.command.is_none(), "{error}");
+                assert!(error.contains("over the size limit"), "{error}");
+                summaries += 1;
+                dropped += error["dropped ".len()..]
+                    .split(' ')
+                    .next()
+                    .and_then(|n| n.parse::<u64>().ok())
+                    .expect("a count");
+            }
+        }
+        let refused = health(&client).refused;
+        if refused > 0 && dropped == refused {
+            break;
+        }
+        assert!(
+            began.elapsed() < TIMEOUT,
+            "{dropped} drops summed up in {summaries} events, {refused} refused"
+        );
+    }
+    let seconds = began.elapsed().as_secs_f64().ceil() as u64;
+    assert!(
+        summaries <= seconds + 1,
+        "{summaries} events in {seconds} s"
+    );
+    assert!(
+        dropped > summaries,
+        "{dropped} drops in {summaries} events: one each?"
+    );
+}
+
+#[test]
 fn a_flood_of_commands_starves_neither_requests_nor_the_clock() {
     let server = Server::start("impulse.toml", "flood", &[]);
     let flooder = Arc::new(server.client());

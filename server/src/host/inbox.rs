@@ -91,6 +91,24 @@ pub struct Turned {
     pub queue_full: AtomicU64,
     pub too_large: AtomicU64,
     pub queries_dropped: AtomicU64,
+    /// Of those, the commands sent without a way to answer them (a put, not a query), by
+    /// reason: nobody was told; the host sums them up in an event now and then.
+    pub unanswered: Unanswered,
+}
+
+/// Fire-and-forget commands the inbox dropped, by reason.
+#[derive(Default)]
+pub struct Unanswered {
+    pub too_large: AtomicU64,
+    pub rate_limited: AtomicU64,
+    pub queue_full: AtomicU64,
+}
+
+impl Unanswered {
+    /// (too large, over the rate, queue full) so far.
+    pub fn counts(&self) -> [u64; 3] {
+        [&self.too_large, &self.rate_limited, &self.queue_full].map(|a| a.load(Ordering::Relaxed))
+    }
 }
 
 struct Bucket {
@@ -174,7 +192,7 @@ impl Inbox {
                 payload.len(),
                 self.limits.command_bytes
             );
-            return self.refuse(query, frame, error);
+            return self.refuse(query, frame, error, &self.turned.unanswered.too_large);
         }
         let mut q = self.lock();
         if !take_token(&mut q.buckets, &sender, &self.limits) {
@@ -184,7 +202,7 @@ impl Inbox {
                 "rate limit: a sender may send {} commands a second ({} at once); this one was dropped",
                 self.limits.rate, self.limits.burst
             );
-            return self.refuse(query, frame, error);
+            return self.refuse(query, frame, error, &self.turned.unanswered.rate_limited);
         }
         let limits = self.limits;
         let queued = q.waiting.get(&sender).map_or(0, VecDeque::len);
@@ -198,7 +216,7 @@ impl Inbox {
             let error = format!(
                 "server busy: {waiting} commands are waiting ({queued} of this sender's); this one was dropped"
             );
-            return self.refuse(query, frame, error);
+            return self.refuse(query, frame, error, &self.turned.unanswered.queue_full);
         }
         q.count += 1;
         q.bytes += payload.len();
@@ -215,9 +233,10 @@ impl Inbox {
             });
     }
 
-    /// Answers a refused request at once (through the outbox), and tells event
-    /// subscribers; a refused fire-and-forget command is only counted and logged.
-    fn refuse(&self, query: Option<Query>, frame: u64, error: String) {
+    /// Answers a refused request at once (through the outbox); a refused fire-and-forget
+    /// command is counted in `unanswered` (the host tells event subscribers how many, at
+    /// most once a second: a flood of them is not echoed) and logged.
+    fn refuse(&self, query: Option<Query>, frame: u64, error: String, unanswered: &AtomicU64) {
         match query {
             Some(query) => {
                 let reply = Reply::refused(frame, error);
@@ -226,7 +245,10 @@ impl Inbox {
                     serde_json::to_vec(&reply).expect("replies serialise"),
                 );
             }
-            None => tracing::debug!(frame, "command dropped: {error}"),
+            None => {
+                unanswered.fetch_add(1, Ordering::Relaxed);
+                tracing::debug!(frame, "command dropped: {error}");
+            }
         }
     }
 

@@ -30,7 +30,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use ricochet_engine::world::Limits;
-use ricochet_protocol::command::Health;
+use ricochet_protocol::command::{Event, Health};
 use ricochet_protocol::keys::WorldKeys;
 use ricochet_protocol::net::Network;
 use ricochet_protocol::world as wire;
@@ -58,6 +58,9 @@ pub const MAX_QUERIES_PER_PASS: usize = 64;
 pub const STEP_SLICE: Duration = Duration::from_millis(10);
 /// How often the host gives the heap's free pages back and logs what it turned away.
 pub const TRIM_EVERY: Duration = Duration::from_secs(10);
+/// How often, at most, the host publishes an event summing up the fire-and-forget
+/// commands its inbox dropped (none when it dropped none).
+pub const DROPS_EVERY: Duration = Duration::from_secs(1);
 /// How long the server's session waits for a slow peer to take a blocking message (a
 /// reply to a query asked with `Block`) before zenoh closes that peer's link: zenoh's
 /// default is 5 s. Only the outbox thread ever waits so.
@@ -139,6 +142,24 @@ fn health(host: &Hosted, inbox: &Inbox, outbox: &Outbox) -> Health {
         unsent: load(&outbox.unsent) + load(&inbox.turned.queries_dropped),
         ..host.health.clone()
     }
+}
+
+/// The event telling subscribers that fire-and-forget commands were dropped since the
+/// counts `before` (too large, over the rate, queue full), if any were: they had no reply
+/// to carry the refusal.
+fn drops_event(frame: u64, before: [u64; 3], now: [u64; 3]) -> Option<Event> {
+    let [large, rate, full] = [0, 1, 2].map(|k| now[k].saturating_sub(before[k]));
+    let total = large + rate + full;
+    (total > 0).then(|| Event {
+        frame,
+        ok: false,
+        command: None,
+        ids: Vec::new(),
+        error: Some(format!(
+            "dropped {total} command(s) sent without a reply key since the last such event: \
+             {large} over the size limit, {rate} over their sender's rate, {full} with the queue full"
+        )),
+    })
 }
 
 /// Hosts a world until killed (or `max_frames`).
@@ -325,6 +346,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     // The state query's answer, kept for the frame it was made at.
     let mut state: Option<((u64, u64), Vec<u8>)> = None;
     let mut last_report = (Instant::now(), Health::default());
+    let mut last_drops = (Instant::now(), [0u64; 3]);
     loop {
         inbox.set_frame(host.world.frame());
 
@@ -404,6 +426,13 @@ pub fn run(opts: HostOptions) -> Result<()> {
         }
 
         answered.forget();
+        if last_drops.0.elapsed() >= DROPS_EVERY {
+            let now = inbox.turned.unanswered.counts();
+            if let Some(event) = drops_event(host.world.frame(), last_drops.1, now) {
+                inbox.event(&event);
+            }
+            last_drops = (Instant::now(), now);
+        }
         if last_report.0.elapsed() >= TRIM_EVERY {
             give_back_memory();
             let now = health(&host, &inbox, &outbox);
