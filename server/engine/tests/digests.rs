@@ -81,7 +81,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "pyramid-100",
-        "641fed1cd0875ac4f8eb086b0d167815a5ab2e92248c400aadcdc2c5d65f8e78",
+        "d93a2f37e1ba9284f02e11b3fa52f58c41057712cad4f80887b369a95fc77e98",
     ),
     (
         "slide",

@@ -229,6 +229,13 @@ pub struct SolverBuffers {
     /// Buckets of the runs of pairs after the first when contacts are found on several
     /// threads.
     found: Vec<Vec<Vec<Contact>>>,
+    /// Each mover's block (see [`blocks::assign`]), the movers it was cut for, and the
+    /// frames since: cut again when the movers change or every [`blocks::RECUT_FRAMES`].
+    block_of: Vec<u16>,
+    blocks_for: Vec<u32>,
+    frames_since_cut: u32,
+    places: Vec<DVec2>,
+    cut_scratch: Vec<f64>,
     /// Bodies a contact pushed in the sub-step (exact flight only).
     pushed: Vec<bool>,
 }
@@ -264,6 +271,11 @@ pub fn solve_frame(
         accel: gain,
         buckets,
         found,
+        block_of,
+        blocks_for,
+        frames_since_cut,
+        places,
+        cut_scratch,
         pushed,
     } = buffers;
     if slot.len() < bodies.len() {
@@ -304,6 +316,20 @@ pub fn solve_frame(
 
     let moving = movers.len();
     let block_count = blocks::block_count(moving);
+    // The blocks, cut from where the movers are (not every frame: the cut costs about
+    // as much as a tenth of a pass on the pyramid, and a pile hardly moves).
+    *frames_since_cut += 1;
+    if blocks_for.as_slice() != movers
+        || block_of.len() != moving
+        || *frames_since_cut >= blocks::RECUT_FRAMES
+    {
+        places.clear();
+        places.extend(movers.iter().map(|&i| bodies[i as usize].pos));
+        blocks::assign(places, block_count, block_of, cut_scratch);
+        blocks_for.clear();
+        blocks_for.extend_from_slice(movers);
+        *frames_since_cut = 0;
+    }
     buckets.resize_with(block_count + 1, Vec::new);
     buckets.truncate(block_count + 1);
     for bucket in buckets.iter_mut() {
@@ -318,6 +344,7 @@ pub fn solve_frame(
     let find = Finder {
         bodies,
         slot,
+        block_of,
         moving,
         block_count,
         params,
@@ -495,6 +522,8 @@ pub fn solve_frame(
 struct Finder<'a, G> {
     bodies: &'a [Body],
     slot: &'a [u32],
+    /// Each mover's block, by slot.
+    block_of: &'a [u16],
     moving: usize,
     block_count: usize,
     params: ImpulseParams,
@@ -554,15 +583,21 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             // Only contacts that touch start from their last impulses.
             let warm = params.warm_starting && gap <= slop && old_n.dot(n) > 0.99;
             let (sa, sb) = (self.slot[i as usize], self.slot[j as usize]);
-            let bucket = blocks::bucket_of(sa, sb, self.moving, self.block_count, |s| {
+            let bucket = blocks::bucket_of(
+                sa,
+                sb,
+                self.block_count,
                 // Moving: a mover (the first slots) that is not frozen for the step.
-                (s as usize) < self.moving
-                    && if s == sa {
-                        a.inv_mass != 0.0
-                    } else {
-                        b.inv_mass != 0.0
-                    }
-            });
+                |s| {
+                    (s as usize) < self.moving
+                        && if s == sa {
+                            a.inv_mass != 0.0
+                        } else {
+                            b.inv_mass != 0.0
+                        }
+                },
+                |s| self.block_of[s as usize] as usize,
+            );
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
