@@ -393,7 +393,9 @@ pub fn solve_frame(
         (rigid, rigid)
     };
 
-    let threads = params.threads;
+    // One block has nothing to split: the frame stays on the calling thread (no hand-over
+    // to the pool for a small world that asked for threads).
+    let threads = if block_count > 1 { params.threads } else { 1 };
     let mut bouncing = buckets.iter().flatten().any(|c| c.bounce > 0.0);
     // The sub-steps run inside the pool, so each pass splits among threads already
     // running (one hand-over a frame, not one a pass).
