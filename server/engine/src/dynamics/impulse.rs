@@ -424,14 +424,9 @@ pub fn solve_frame(
                 let fresh = params.split_impulses && k == 0;
                 report.passes += 1;
                 let args = (push, push_fixed, inv_h, params.split_impulses, fresh);
-                if last_step && params.relax_iterations == 0 && k + 1 == params.iterations {
-                    report.residual = in_blocks(threads, sb, buckets, |b, c| {
-                        solve_contact::<true>(b, c, args)
-                    }) * h;
-                } else {
-                    in_blocks(threads, sb, buckets, |b, c| {
-                        solve_contact::<false>(b, c, args)
-                    });
+                let last = last_step && params.relax_iterations == 0 && k + 1 == params.iterations;
+                if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
+                    report.residual = change * h;
                 }
             }
             if params.exact_flight {
@@ -460,14 +455,9 @@ pub fn solve_frame(
             for k in 0..params.relax_iterations {
                 report.passes += 1;
                 let args = (Bias::NONE, Bias::NONE, inv_h, false, false);
-                if last_step && k + 1 == params.relax_iterations {
-                    report.residual = in_blocks(threads, sb, buckets, |b, c| {
-                        solve_contact::<true>(b, c, args)
-                    }) * h;
-                } else {
-                    in_blocks(threads, sb, buckets, |b, c| {
-                        solve_contact::<false>(b, c, args)
-                    });
+                let last = last_step && k + 1 == params.relax_iterations;
+                if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
+                    report.residual = change * h;
                 }
             }
             // Restitution, once, for contacts that pushed: after the move, the normal velocity
@@ -695,6 +685,27 @@ fn solve_contact<const MEASURE: bool>(
         }
     }
     0.0
+}
+
+/// One velocity pass over every contact; with `measure` (the frame's last pass), the
+/// largest normal velocity change it made.
+fn velocity_pass(
+    threads: u32,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    args: (Bias, Bias, f64, bool, bool),
+    measure: bool,
+) -> Option<f64> {
+    if measure {
+        Some(in_blocks(threads, sb, buckets, |b, c| {
+            solve_contact::<true>(b, c, args)
+        }))
+    } else {
+        in_blocks(threads, sb, buckets, |b, c| {
+            solve_contact::<false>(b, c, args)
+        });
+        None
+    }
 }
 
 fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
