@@ -424,7 +424,14 @@ fn a_set_solver_knob_shows_in_the_next_frames_figures() {
     let server = Server::start(
         "pyramid-10.toml",
         "live-figures",
-        &["--set", "solver=impulses", "--set", "impulse_iterations=2"],
+        &[
+            "--set",
+            "solver=impulses",
+            "--set",
+            "substeps=1",
+            "--set",
+            "impulse_iterations=2",
+        ],
     );
     let client = server.client();
     let frames = client.frames().unwrap();

@@ -205,6 +205,8 @@ fn stats_has_one_line_per_step_with_the_passes_counted() {
         "solver=impulses",
         "--set",
         "substeps=2",
+        "--set",
+        "impulse_iterations=8",
         "--stats",
         stats.to_str().unwrap(),
     ]);
@@ -248,8 +250,8 @@ fn bench_measures_shipped_scenes_and_writes_its_csv_and_table() {
     assert_eq!(rows.len(), 4, "{csv}");
     for (row, start) in rows[1..].iter().zip([
         "bench/platforms-10,shipped,,11,0,600,",
-        "bench/platforms-10,impulses,solver=impulses,11,0,600,",
-        "bench/platforms-10,\"impulses, grid\",solver=impulses broad_phase=grid,11,0,600,",
+        "bench/platforms-10,relaxation,solver=relaxation,11,0,600,",
+        "bench/platforms-10,\"impulses, sweep\",broad_phase=sweep,11,0,600,",
     ]) {
         assert!(row.starts_with(start), "{csv}");
     }

@@ -11,10 +11,13 @@
 //! - [`particles`]: the particle system, presets and emitters;
 //! - [`world`]: the body store, the step pipeline that ties the above together, the
 //!   chapter demo's behaviours and the actions;
-//! - [`scene`]: scene files, refused with file, line and field.
+//! - [`scene`]: scene files, refused with file, line and field;
+//! - [`criteria`]: what a scene's user expects of a run (`[criteria]`), and the monitor
+//!   that measures a run against it.
 
 pub mod action;
 pub mod behavior;
+pub mod criteria;
 pub mod dynamics;
 pub mod geometry;
 pub mod parallel;

@@ -17,11 +17,14 @@ const STEPS: u64 = 300;
 
 /// (scene, digest of its 301 states: before the first step and after each). `bounce`,
 /// `projectile` and `slide` were added after the reorganisation (the trade-off report's
-/// scenes, once built in code) and recorded when they were.
+/// scenes, once built in code) and recorded when they were. Every scene that names no
+/// solver was recorded again when the default became the suite's (impulses, 2 sub-steps
+/// of 2 passes, split impulses, the resting load); the chapter's demos, which name its
+/// relaxation, and the scenes whose bodies never touch kept theirs.
 const EXPECTED: &[(&str, &str)] = &[
     (
         "bounce",
-        "5169078efe3b040011253055f2e9e3ed9bf8c613efb0f81e4ece399ac68b9c44",
+        "8222a3c755d6df06d6ad71c97305d042b6dfccc6a61856d8e37dd6c8a2b7b082",
     ),
     (
         "bounds",
@@ -29,7 +32,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "coincident",
-        "f11858542137b4897b4003f661e34347bb82c2e682fd9f4b838acbbee49339dd",
+        "24332b2be5a5ccf45e9cdabe25ddd36419ea9de57b0efd2d552c7f746105f39c",
     ),
     (
         "emitters",
@@ -37,11 +40,11 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "far-from-origin",
-        "9eb4afc6f8603065715fd3d5a62b1a1d193bb1aee4378009ba84382939032f55",
+        "0c37b77ddb5756b888d836c94fe78059bad667857f033e8d170533e10c3e8046",
     ),
     (
         "huge",
-        "a7626b7e583b9f08724a6b5641e0a2b112f49f6ec20cdf8b540f94a6b506466a",
+        "cefdb75b96167cb0d3690dff04398345c49c4faf1e629f4662dbabe050583904",
     ),
     (
         "impulse",
@@ -49,11 +52,11 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "mass-ratio-1000",
-        "ae92dd086e6284791a4e95e3e06f5208c6e2e81be2b4de998cc2aacdf0ce9b76",
+        "8c2740a327cd1cddb8d4ab33a6955777b1cc2ca2ed2499149c75e83baed26065",
     ),
     (
         "overlap-quarter",
-        "7555ee5328abaedac76b7e0d207aebce7eec480299b1fd77b27a021aef989514",
+        "1b6fd1b1e67a8c07eb09b42768c557bd5dfaa280cebd2e4c8bfe58b14b204f9c",
     ),
     (
         "particles",
@@ -73,31 +76,31 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "projectile",
-        "708e7973dd80b7764ace282814d549a05f5b277d9c8f9e239d9ce3aca9667bbe",
+        "c9c2ca54960b3a8bc7b5673d29c6b77c1111c6a447167199c53fdb9c20819e23",
     ),
     (
         "pyramid-10",
-        "d107c6d4c982d0c71c68cb43008cb65f2abda63a8477f75a101d6f138df1ebe1",
+        "af144c81c67fdb2a0253329473f5cde08d2a494bf272b746edc8e01b4fbd69d8",
     ),
     (
         "pyramid-100",
-        "d93a2f37e1ba9284f02e11b3fa52f58c41057712cad4f80887b369a95fc77e98",
+        "a862b1b53bfeff6646db05475c41239ba7bf5c7dc5468cf437981a5dc8bedc3a",
     ),
     (
         "slide",
-        "286078dacdd6c2e007e5c858f1c81252ac44435e2c93715b975301b82eec62d1",
+        "a6fa1b353d9df579dd0073c946c91583bc4976842bb231a1ab624861c1eb4860",
     ),
     (
         "stack-20",
-        "94b622228085cedbd34ec750ae99f8028b6e84dcaae2d2f5781f7941ed33ebc7",
+        "c2071ef01ee52ee1e4dc545d1dfb510a5604453c66564a112068cfa7dd3a014b",
     ),
     (
         "tiny",
-        "37f7ec009766add287b03be4d303190111cede8a62506fe5334a1d3a8daf8816",
+        "e5c6436eaceb9172050b97aa1aecfb30bfea6bd3cd82a2f8070a30626571936d",
     ),
     (
         "tunnelling",
-        "0bc0a7848d0275feb798f593f561a4d7ca7529a4084d7115bac9c95c98f0eb2b",
+        "0eaf5f398770e206ecd3c00aa1fa1485f15176fab30b4d3e491818d938d4142c",
     ),
     (
         "zero-mass",

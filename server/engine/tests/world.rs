@@ -32,6 +32,11 @@ a = "boxes"
 b = "platforms"
 "#;
 
+/// `scene` under the chapter's relaxation.
+fn chapter(scene: &str) -> String {
+    scene.replacen("[world]\n", "[world]\nsolver = \"relaxation\"\n", 1)
+}
+
 #[test]
 fn a_box_resting_on_a_static_platform_stays_put() {
     let mut w = scene(PLATFORM_AND_BOX);
@@ -58,7 +63,8 @@ fn a_box_resting_on_a_static_platform_stays_put() {
 
 #[test]
 fn a_free_fall_matches_symplectic_euler_until_contact() {
-    let mut w = scene(&PLATFORM_AND_BOX.replace("pos = [0, 3]", "pos = [0, 50]"));
+    // The chapter's step: one symplectic Euler step of dt a frame.
+    let mut w = scene(&chapter(PLATFORM_AND_BOX).replace("pos = [0, 3]", "pos = [0, 50]"));
     let (g, dt) = (-50.0, w.config.dt);
     for n in 1..=30u32 {
         w.step();
@@ -346,7 +352,7 @@ fn solver_passes_are_counted_as_they_run() {
     assert_eq!(w.stats().relaxation_iterations, 15);
     // The chapter's relaxation stops after a pass that finds nothing to resolve: a box
     // in free fall costs one pass per interaction, not the 15 configured.
-    let mut w = scene(&PLATFORM_AND_BOX.replace("pos = [0, 3]", "pos = [0, 30]"));
+    let mut w = scene(&chapter(PLATFORM_AND_BOX).replace("pos = [0, 3]", "pos = [0, 30]"));
     assert_eq!(w.config.relaxation_iterations, 15);
     w.step();
     assert_eq!(w.stats().relaxation_iterations, 1, "{:?}", w.stats());
@@ -389,12 +395,14 @@ fn bodies_are_found_by_id_and_selection_after_others_are_removed() {
 }
 
 /// `settle_iterations` solves the resting load before the first step: the first step starts
-/// from impulses that hold the pile, so its boxes move far less in it than from a cold start.
+/// from impulses that hold the pile, so its boxes move far less in it than from a cold start;
+/// `rest_load` (the default) finds those impulses in one sweep, and the pile does not move
+/// at all.
 #[test]
 fn settling_starts_the_pile_warm() {
-    let fastest = |settle: u32| {
+    let fastest = |settings: &[&str]| {
         let mut w = asset("pyramid-10.toml");
-        for s in ["solver=impulses", &format!("settle_iterations={settle}")] {
+        for s in settings {
             w.apply(&set(s)).unwrap();
         }
         let built: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
@@ -405,15 +413,21 @@ fn settling_starts_the_pile_warm() {
             .map(|(b, p)| (b.pos - *p).length())
             .fold(0.0, f64::max)
     };
-    let (cold, warm) = (fastest(0), fastest(200));
+    let cold = fastest(&["rest_load=false"]);
+    let warm = fastest(&["rest_load=false", "settle_iterations=200"]);
     assert!(cold > 0.0, "the cold pile did not move at all");
     assert!(warm < cold / 10.0, "settled {warm} against cold {cold}");
+    let loaded = fastest(&[]);
+    assert!(
+        loaded < cold / 1e6,
+        "from the resting load {loaded} against cold {cold}"
+    );
 }
 
-/// The brief's pile at its shipped setting: the worst drift of any box over all 500 steps
-/// stays under a hundredth of a box (the cold pile's first frames are solved to
-/// convergence, `start_iterations`); without the start passes it does not hold (at the
-/// shipped 2 iterations a sub-step it slides apart).
+/// The brief's pile under the default: the worst drift of any box over all 500 steps
+/// stays under a hundredth of a box (the cold pile starts from its resting load,
+/// `rest_load`); without the resting load it does not hold (at the default's 2 passes a
+/// sub-step it slides apart).
 #[test]
 fn the_shipped_pyramid_100_holds_within_a_hundredth_of_a_box_over_every_step() {
     let worst = |settings: &[&str]| {
@@ -433,6 +447,6 @@ fn the_shipped_pyramid_100_holds_within_a_hundredth_of_a_box_over_every_step() {
     };
     let shipped = worst(&[]);
     assert!(shipped < 0.01, "worst drift {shipped} box sizes");
-    let cold = worst(&["start_iterations=0"]);
-    assert!(cold > 0.1, "without the start passes: {cold}");
+    let cold = worst(&["rest_load=false"]);
+    assert!(cold > 0.1, "without the resting load: {cold}");
 }

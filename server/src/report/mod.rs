@@ -5,6 +5,7 @@
 //! - [`tradeoff`]: what each solver setting costs and buys in accuracy, on shipped scenes;
 //! - [`scene_tradeoff`]: the same on any scene, against a converged reference;
 //! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
+//! - [`suite`]: the suite of scene kinds under named settings, against their criteria;
 //! - [`chart`]: the trade-off charts' font and their time-against-error panel;
 //! - [`splice`]: how a run writes its table into a hand-written page.
 
@@ -12,6 +13,7 @@ pub mod bench;
 pub mod chart;
 pub mod scene_tradeoff;
 pub mod soak;
+pub mod suite;
 pub mod tradeoff;
 
 use std::path::Path;

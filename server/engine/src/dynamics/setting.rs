@@ -60,6 +60,18 @@ macro_rules! settings {
                 }
             }
 
+            /// `self`'s fields that `named` lists over `base`'s others (a scene's
+            /// `[world]` over the defaults of the solver it names).
+            pub fn named_over(&self, base: WorldConfig, named: &[&str]) -> WorldConfig {
+                let mut out = base;
+                for s in self.settings() {
+                    if named.contains(&s.name()) {
+                        out.assign(s);
+                    }
+                }
+                out
+            }
+
             /// Every parameter's current value, as settings.
             pub fn settings(&self) -> Vec<Setting> {
                 vec![$( Setting::$variant(self.$field.clone().into()), )*]
@@ -89,6 +101,7 @@ settings! {
     SettleIterations(u32) => settle_iterations,
     StartIterations(u32) => start_iterations,
     StartFrames(u32) => start_frames,
+    RestLoad(bool) => rest_load,
     ContactHertz(f64) => contact_hertz,
     ContactDamping(f64) => contact_damping,
     SplitImpulses(bool) => split_impulses,

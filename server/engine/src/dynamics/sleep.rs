@@ -51,24 +51,32 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
 
 /// Updates rest times and puts islands to sleep or wakes them. `pairs` are candidate
 /// pairs of the step (body indices); those touching join islands; `may_sleep` says which
-/// bodies may rest at all (the demo's steered bodies never do). Returns how many bodies
-/// sleep now.
+/// bodies may rest at all (the demo's steered bodies never do); `start` is each mover's
+/// place at the start of the step (a body that moved further than `speed` allows is not
+/// at rest). Returns how many bodies sleep now.
 #[allow(clippy::too_many_arguments)]
 pub fn update(
     bodies: &mut [Body],
     movers: &[u32],
     may_sleep: impl Fn(usize) -> bool,
     pairs: &[(u32, u32)],
+    start: &[(u32, glam::DVec2)],
     dt: f64,
     speed: f64,
     delay: f64,
 ) -> u64 {
-    for &i in movers {
+    for (k, &i) in movers.iter().enumerate() {
         let b = &mut bodies[i as usize];
         if b.asleep.is_some() {
             continue;
         }
-        b.rest_time = if may_sleep(i as usize) && b.vel.length() < speed {
+        // At rest: slow, and not moved further than that speed allows over the step
+        // (split impulses move positions without velocity).
+        let still = match start.get(k) {
+            Some(&(j, p)) if j == i => (b.pos - p).length() < speed * dt,
+            _ => false,
+        };
+        b.rest_time = if may_sleep(i as usize) && b.vel.length() < speed && still {
             b.rest_time + dt
         } else {
             0.0

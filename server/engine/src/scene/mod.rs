@@ -39,7 +39,9 @@ use std::path::{Path, PathBuf};
 use glam::{DVec2, Vec2, Vec4};
 
 use crate::behavior::{self, Behavior, Held};
+use crate::criteria::Criteria;
 use crate::dynamics::body::BodyDef;
+use crate::dynamics::config::{Solver, WorldConfig};
 use crate::geometry::Shape;
 use crate::particles::ParticleDef;
 use crate::world::{Limits, World};
@@ -116,6 +118,23 @@ pub fn parse_with(
                 .to_string(),
             message: e.to_string(),
         })?;
+    }
+    if config.solver == Solver::Relaxation {
+        // The chapter's relaxation keeps the chapter's sub-steps and broad phase unless
+        // the table or an override names them.
+        let table: toml::Table = toml::from_str(text).map_err(|e| ctx.parse_error(&e))?;
+        let mut named: Vec<&str> = table
+            .get("world")
+            .and_then(|w| w.as_table())
+            .map(|w| w.keys().map(String::as_str).collect())
+            .unwrap_or_default();
+        named.extend(
+            overrides
+                .iter()
+                .filter_map(|o| o.split('=').next())
+                .map(str::trim),
+        );
+        config = config.named_over(WorldConfig::chapter(), &named);
     }
 
     let limits = match &scene.limits {
@@ -233,11 +252,32 @@ pub fn parse_with(
                 ctx.field_error(&format!("interact[{i}]"), raw.span(), "b", &e.to_string())
             })?;
     }
+    if let Some(criteria) = &scene.criteria {
+        criteria
+            .get_ref()
+            .validate()
+            .map_err(|(f, m)| ctx.field_error("criteria", criteria.span(), f, &m))?;
+    }
     world.check_work(&world.config).map_err(|e| {
         let span = scene.world.as_ref().map(|t| t.span()).unwrap_or(0..0);
         ctx.field_error("world", span, "solver", &e.to_string())
     })?;
     Ok(world)
+}
+
+/// The scene's `[criteria]` (see [`crate::criteria`]), if it states any; a bad table is
+/// refused as [`parse`] refuses it.
+pub fn criteria(text: &str, file: &Path) -> Result<Option<Criteria>, SceneError> {
+    let ctx = Ctx { text, file };
+    let scene: SceneFile = toml::from_str(text).map_err(|e| ctx.parse_error(&e))?;
+    let Some(criteria) = scene.criteria else {
+        return Ok(None);
+    };
+    criteria
+        .get_ref()
+        .validate()
+        .map_err(|(f, m)| ctx.field_error("criteria", criteria.span(), f, &m))?;
+    Ok(Some(criteria.into_inner()))
 }
 
 /// The scene's `[limits]` over `ceiling`: each named value must be valid and no higher.

@@ -30,6 +30,9 @@ pub(super) struct SceneFile {
     pub(super) emitter: Vec<Spanned<RawEmitter>>,
     #[serde(default)]
     pub(super) interact: Vec<Spanned<RawInteraction>>,
+    /// What a run of the scene is expected to hold (see [`crate::criteria`]).
+    #[serde(default)]
+    pub(super) criteria: Option<Spanned<crate::criteria::Criteria>>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]

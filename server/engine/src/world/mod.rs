@@ -154,6 +154,8 @@ pub struct World {
     layout_revision: u64,
     pairs: Vec<(u32, u32)>,
     sweep_out: Vec<(u32, u32)>,
+    /// Each moving body's place at the start of the step (kept only with sleeping on).
+    step_start: Vec<(u32, glam::DVec2)>,
     /// Indices of the dynamic bodies, and of the bodies with a behaviour: what a step
     /// walks, so static bodies cost nothing unless something touches them.
     movers: Vec<u32>,
@@ -208,6 +210,7 @@ impl World {
             layout_revision: 1,
             pairs: Vec::new(),
             sweep_out: Vec::new(),
+            step_start: Vec::new(),
             movers: Vec::new(),
             behaving: Vec::new(),
             flagged: Vec::new(),

@@ -38,6 +38,12 @@ impl World {
         if self.sleeping > 0 {
             sleep::freeze(&mut self.bodies, &self.movers);
         }
+        if self.config.sleeping {
+            let bodies = &self.bodies;
+            self.step_start.clear();
+            self.step_start
+                .extend(self.movers.iter().map(|&i| (i, bodies[i as usize].pos)));
+        }
         self.run_behaviors();
         let dt = self.config.dt;
         let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
@@ -140,6 +146,7 @@ impl World {
             &self.movers,
             may_sleep,
             &pairs,
+            &self.step_start,
             dt,
             speed,
             delay,
@@ -331,6 +338,9 @@ impl World {
             substeps: config.substeps,
             exact_flight: config.integrator == Integrator::Exact,
             threads: config.threads,
+            rest_load: (config.rest_load && self.frame == 0)
+                .then(|| (-config.gravity).try_normalize())
+                .flatten(),
         };
         let grid = config.broad_phase == BroadPhase::Grid;
         let mut pairs = if grid {

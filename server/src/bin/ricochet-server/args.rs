@@ -129,6 +129,23 @@ pub enum Command {
         #[arg(long = "set", value_name = "NAME=VALUE")]
         set: Vec<String>,
     },
+    /// Hold the suite of scene kinds to their criteria under named settings.
+    ///
+    /// Runs every scene of the suite (each states its criteria in `[criteria]`) under the
+    /// default and the settings it replaced or is without one of its parts, timing every
+    /// step of the run. Prints the tables; with --out writes DIR/suite.csv and the tables
+    /// of DIR/README.md (docs/bench). Use a release build.
+    Suite {
+        /// Where the suite's scenes are.
+        #[arg(long, default_value = "assets/scenes/suite", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Only the scenes whose file name contains this.
+        #[arg(long)]
+        only: Option<String>,
+        /// Write DIR/suite.csv and the generated tables of DIR/README.md (docs/bench).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
     /// Measure what each solver setting costs and buys.
     ///
     /// Runs the matrix of scenes x solver settings and writes DIR/tradeoff.csv and

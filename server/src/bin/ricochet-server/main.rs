@@ -105,6 +105,27 @@ fn main() -> Result<()> {
             scenes,
             set,
         } => run_bench(steps, only.as_deref(), out.as_deref(), &scenes, set),
+        Command::Suite { scenes, only, out } => {
+            let progress = indicatif::ProgressBar::new(0).with_style(
+                indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+                    .expect("a valid template"),
+            );
+            let rows = report::suite::run_all(&scenes, only.as_deref(), &progress)?;
+            progress.finish_and_clear();
+            println!("{}", report::suite::to_markdown(&rows));
+            if let Some(dir) = out {
+                let command = std::iter::once("ricochet-server".to_string())
+                    .chain(std::env::args().skip(1))
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                report::suite::write(&dir, &rows, &command)?;
+                eprintln!(
+                    "wrote {} and the tables of its README.md",
+                    dir.join("suite.csv").display()
+                );
+            }
+            Ok(())
+        }
         Command::Tradeoff { out, scene } if !scene.scene.is_empty() => scene_tradeoff(out, scene),
         Command::Tradeoff { out, .. } => {
             std::fs::create_dir_all(&out)

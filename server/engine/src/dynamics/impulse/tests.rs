@@ -48,6 +48,7 @@ fn params() -> ImpulseParams {
         substeps: 1,
         exact_flight: false,
         threads: 1,
+        rest_load: None,
     }
 }
 

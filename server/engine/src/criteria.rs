@@ -1,0 +1,447 @@
+//! What a user of a scene expects of it, stated in the scene's `[criteria]` table, and the
+//! [`Monitor`] that measures a run against it: the suite of scene kinds
+//! (`assets/scenes/suite/`) holds each of its scenes to these, and any scene may state its
+//! own.
+//!
+//! ```toml
+//! [criteria]
+//! steps = 600                  # the run judged (default 600)
+//! inside = [[0, 0], [40, 80]]  # no dynamic body's centre ever leaves this box
+//! drift = 0.02                 # no dynamic body ever further than this from where it was
+//!                              # built, in its own sizes (its smaller side)
+//! overlap = 0.01               # no two bodies that interact ever overlap deeper than this,
+//!                              # in sizes of the smaller of the two
+//! final_overlap = 0.01         # the same, at the end of the run only
+//! speed = 5                    # no dynamic body ever faster than this (units/s)
+//! final_speed = 0.05           # the same, over the last second of the run only
+//! energy_rise = 0.01           # kinetic energy never rises more than this share of its
+//!                              # start above an earlier low (worlds without gravity)
+//! ```
+//!
+//! Every figure is the worst over the whole run (or over its stated end); a body that
+//! leaves the world's numbers (NaN, infinity) fails every criterion.
+
+use glam::DVec2;
+use serde::{Deserialize, Serialize};
+
+use crate::dynamics::body::GroupId;
+use crate::geometry::{separation, Shape};
+use crate::world::{Side, World};
+
+/// A scene's expectations; each absent criterion is not judged.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Criteria {
+    /// Steps the run is judged over.
+    #[serde(default = "default_steps")]
+    pub steps: u64,
+    /// A box (lower-left, upper-right corners) no dynamic body's centre may leave: a
+    /// container's inside, or the near side of a wall.
+    #[serde(default)]
+    pub inside: Option<[DVec2; 2]>,
+    /// Worst distance of a dynamic body from where it was built, in its own sizes.
+    #[serde(default)]
+    pub drift: Option<f64>,
+    /// Worst overlap of two interacting bodies, in sizes of the smaller.
+    #[serde(default)]
+    pub overlap: Option<f64>,
+    /// Worst overlap after the last step, in sizes of the smaller body of the pair.
+    #[serde(default)]
+    pub final_overlap: Option<f64>,
+    /// Worst speed of a dynamic body (units/s): the larger of its velocity and how far it
+    /// moved in a step over the step (a push that moves positions without velocity counts).
+    #[serde(default)]
+    pub speed: Option<f64>,
+    /// Worst speed of a dynamic body over the last second of the run (units/s).
+    #[serde(default)]
+    pub final_speed: Option<f64>,
+    /// Worst rise of the kinetic energy above its lowest value so far, as a share of its
+    /// value at the start.
+    #[serde(default)]
+    pub energy_rise: Option<f64>,
+}
+
+fn default_steps() -> u64 {
+    600
+}
+
+/// The longest run a scene's criteria may ask for.
+pub const MAX_STEPS: u64 = 1_000_000;
+
+impl Criteria {
+    /// Checks every number: the name of the first bad field and why.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if !(1..=MAX_STEPS).contains(&self.steps) {
+            return Err(("steps", format!("{} must be 1 to {MAX_STEPS}", self.steps)));
+        }
+        if let Some([lo, hi]) = self.inside {
+            if !(lo.is_finite() && hi.is_finite() && hi.x > lo.x && hi.y > lo.y) {
+                return Err((
+                    "inside",
+                    "needs two finite corners [[x0, y0], [x1, y1]] with x1 > x0 and y1 > y0".into(),
+                ));
+            }
+        }
+        for (name, v) in [
+            ("drift", self.drift),
+            ("overlap", self.overlap),
+            ("final_overlap", self.final_overlap),
+            ("speed", self.speed),
+            ("final_speed", self.final_speed),
+            ("energy_rise", self.energy_rise),
+        ] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err((name, format!("{v} must be a finite number, 0 or above")));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One criterion's verdict: the run's worst figure against the scene's limit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Judgement {
+    /// The criterion's name, as the scene spells it.
+    pub name: &'static str,
+    /// What the run measured (the worst over the run, or the count of bodies that left).
+    pub figure: f64,
+    pub limit: f64,
+    pub pass: bool,
+}
+
+/// The worst figures of a run so far, measured after every step whatever the criteria
+/// ask (a report shows them all).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Figures {
+    /// Steps observed.
+    pub steps: u64,
+    /// Dynamic bodies whose centre was outside `inside` after some step.
+    pub left: u64,
+    pub drift: f64,
+    pub overlap: f64,
+    pub final_overlap: f64,
+    pub speed: f64,
+    pub final_speed: f64,
+    pub energy_rise: f64,
+    /// A position or velocity stopped being a finite number.
+    pub non_finite: bool,
+}
+
+/// Watches a run: [`Monitor::observe`] after every step, then [`Monitor::verdict`].
+#[derive(Clone, Debug)]
+pub struct Monitor {
+    criteria: Criteria,
+    /// Each dynamic body's index, its place at the start and its size (smaller side).
+    built: Vec<(u32, DVec2, f64)>,
+    /// Each dynamic body's place after the last step (same order as `built`).
+    last: Vec<DVec2>,
+    dt: f64,
+    /// Which group pairs resolve (both orders), by group id.
+    resolving: Vec<(GroupId, GroupId)>,
+    /// Each dynamic body has left `inside` (same order as `built`).
+    left: Vec<bool>,
+    energy: EnergyWatch,
+    /// Steps in the run's last second, from the world's step.
+    final_window: u64,
+    figures: Figures,
+}
+
+impl Monitor {
+    /// Starts watching `world` as it is now (before its first step).
+    pub fn new(world: &World, criteria: &Criteria) -> Monitor {
+        let built: Vec<(u32, DVec2, f64)> = world
+            .bodies()
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.inv_mass > 0.0)
+            .map(|(i, b)| (i as u32, b.pos, b.shape.size().min_element()))
+            .collect();
+        let mut resolving = Vec::new();
+        for inter in world.interactions() {
+            if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
+                resolving.push((a, b));
+                resolving.push((b, a));
+            }
+        }
+        let energy = world.kinetic_energy();
+        let per_second = (1.0 / world.config.dt).round().max(1.0) as u64;
+        Monitor {
+            criteria: criteria.clone(),
+            left: vec![false; built.len()],
+            last: built.iter().map(|b| b.1).collect(),
+            dt: world.config.dt,
+            built,
+            resolving,
+            energy: EnergyWatch::new(energy),
+            final_window: per_second.min(criteria.steps),
+            figures: Figures::default(),
+        }
+    }
+
+    /// Measures the world after a step.
+    pub fn observe(&mut self, world: &World) {
+        let bodies = world.bodies();
+        let f = &mut self.figures;
+        f.steps += 1;
+        let in_final = f.steps + self.final_window > self.criteria.steps;
+        for (k, &(i, start, size)) in self.built.iter().enumerate() {
+            let b = &bodies[i as usize];
+            if !(b.pos.is_finite() && b.vel.is_finite()) {
+                f.non_finite = true;
+                continue;
+            }
+            f.drift = f.drift.max((b.pos - start).length() / size);
+            let speed = b
+                .vel
+                .length()
+                .max((b.pos - self.last[k]).length() / self.dt);
+            self.last[k] = b.pos;
+            f.speed = f.speed.max(speed);
+            if in_final {
+                f.final_speed = f.final_speed.max(speed);
+            }
+            if let Some([lo, hi]) = self.criteria.inside {
+                let out = b.pos.x < lo.x || b.pos.y < lo.y || b.pos.x > hi.x || b.pos.y > hi.y;
+                if out && !self.left[k] {
+                    self.left[k] = true;
+                    f.left += 1;
+                }
+            }
+        }
+        f.energy_rise = self.energy.see(world.kinetic_energy());
+        if self.criteria.overlap.is_some() || self.criteria.final_overlap.is_some() {
+            let deepest = deepest_overlap(world, &self.resolving);
+            let f = &mut self.figures;
+            f.overlap = f.overlap.max(deepest);
+            f.final_overlap = deepest;
+        }
+    }
+
+    /// The figures so far.
+    pub fn figures(&self) -> &Figures {
+        &self.figures
+    }
+
+    /// Each stated criterion against the run's figures.
+    pub fn verdict(&self) -> Vec<Judgement> {
+        let f = &self.figures;
+        let c = &self.criteria;
+        let bad = f.non_finite;
+        let mut out = Vec::new();
+        let mut judge = |name, figure: f64, limit: Option<f64>| {
+            if let Some(limit) = limit {
+                out.push(Judgement {
+                    name,
+                    figure,
+                    limit,
+                    pass: !bad && figure <= limit,
+                });
+            }
+        };
+        judge("inside", f.left as f64, c.inside.map(|_| 0.0));
+        judge("drift", f.drift, c.drift);
+        judge("overlap", f.overlap, c.overlap);
+        judge("final_overlap", f.final_overlap, c.final_overlap);
+        judge("speed", f.speed, c.speed);
+        judge("final_speed", f.final_speed, c.final_speed);
+        judge("energy_rise", f.energy_rise, c.energy_rise);
+        out
+    }
+
+    /// Whether every stated criterion holds.
+    pub fn holds(&self) -> bool {
+        self.verdict().iter().all(|j| j.pass)
+    }
+}
+
+/// The deepest overlap among pairs of bodies whose groups resolve against each other, in
+/// sizes of the smaller body of the pair (bodies binned in a grid of the largest
+/// dynamic body's size, so the cost is near the number of bodies).
+fn deepest_overlap(world: &World, resolving: &[(GroupId, GroupId)]) -> f64 {
+    use std::collections::HashMap;
+    let bodies = world.bodies();
+    let cell = bodies
+        .iter()
+        .filter(|b| b.inv_mass > 0.0)
+        .map(|b| b.shape.size().max_element())
+        .fold(0.0_f64, f64::max);
+    if cell <= 0.0 || resolving.is_empty() {
+        return 0.0;
+    }
+    let key = |p: DVec2| ((p.x / cell).floor() as i64, (p.y / cell).floor() as i64);
+    // Dynamic bodies in the grid; each body (static ones too, whatever their size) then
+    // looks up the cells its bounds cover.
+    let mut grid: HashMap<(i64, i64), Vec<u32>> = HashMap::new();
+    for (i, b) in bodies.iter().enumerate() {
+        if b.inv_mass > 0.0 && b.pos.is_finite() {
+            grid.entry(key(b.pos)).or_default().push(i as u32);
+        }
+    }
+    let interacts = |a: GroupId, b: GroupId| resolving.contains(&(a, b));
+    let mut deepest = 0.0_f64;
+    for (i, a) in bodies.iter().enumerate() {
+        if !a.pos.is_finite() {
+            continue;
+        }
+        let h = a.shape.half_extents() + DVec2::splat(cell * 0.5);
+        let (lo, hi) = (key(a.pos - h), key(a.pos + h));
+        // A huge static body covering very many cells: walk the dynamic bodies instead.
+        let cells = (hi.0 - lo.0 + 1).saturating_mul(hi.1 - lo.1 + 1);
+        let mut visit = |j: u32| {
+            let b = &bodies[j as usize];
+            // Each dynamic pair once; a static body against every dynamic one.
+            if (j as usize) <= i && a.inv_mass > 0.0 {
+                return;
+            }
+            if !interacts(a.group, b.group) {
+                return;
+            }
+            let (gap, _) = separation(&a.shape, a.pos, &b.shape, b.pos);
+            if gap < 0.0 {
+                deepest = deepest.max(-gap / smaller(&a.shape, &b.shape));
+            }
+        };
+        if cells as usize > grid.len() {
+            for js in grid.values() {
+                js.iter().for_each(|&j| visit(j));
+            }
+        } else {
+            for x in lo.0..=hi.0 {
+                for y in lo.1..=hi.1 {
+                    if let Some(js) = grid.get(&(x, y)) {
+                        js.iter().for_each(|&j| visit(j));
+                    }
+                }
+            }
+        }
+    }
+    deepest
+}
+
+/// The worst rise of an energy above its lowest value before, as a share of its start.
+#[derive(Clone, Copy, Debug)]
+struct EnergyWatch {
+    start: f64,
+    low: f64,
+    worst: f64,
+}
+
+impl EnergyWatch {
+    fn new(start: f64) -> EnergyWatch {
+        EnergyWatch {
+            start,
+            low: start,
+            worst: 0.0,
+        }
+    }
+
+    /// Takes the next value; returns the worst rise so far (infinite for a non-finite value).
+    fn see(&mut self, energy: f64) -> f64 {
+        if !energy.is_finite() {
+            self.worst = f64::INFINITY;
+        } else if self.start > 0.0 {
+            self.worst = self.worst.max((energy - self.low) / self.start);
+        }
+        self.low = self.low.min(energy);
+        self.worst
+    }
+}
+
+fn smaller(a: &Shape, b: &Shape) -> f64 {
+    a.size().min_element().min(b.size().min_element())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::BodyDef;
+    use crate::dynamics::WorldConfig;
+
+    fn world(bodies: &[(DVec2, DVec2, f64)]) -> World {
+        let mut w = World::new(WorldConfig {
+            gravity: DVec2::ZERO,
+            ..WorldConfig::default()
+        });
+        for (k, &(pos, vel, mass)) in bodies.iter().enumerate() {
+            w.add_body(BodyDef {
+                id: format!("b{k}"),
+                group: "all".into(),
+                pos,
+                vel,
+                mass,
+                ..BodyDef::default()
+            })
+            .unwrap();
+        }
+        w.add_interaction("all", "all", true).unwrap();
+        w
+    }
+
+    #[test]
+    fn overlap_is_measured_in_sizes_of_the_smaller_body() {
+        // Two unit boxes a quarter into each other, and one far away.
+        let w = world(&[
+            (DVec2::ZERO, DVec2::ZERO, 1.0),
+            (DVec2::new(0.75, 0.0), DVec2::ZERO, 1.0),
+            (DVec2::new(50.0, 0.0), DVec2::ZERO, 0.0),
+        ]);
+        let m = Monitor::new(&w, &Criteria::for_test());
+        let d = deepest_overlap(&w, &m.resolving);
+        assert!((d - 0.25).abs() < 1e-12, "{d}");
+    }
+
+    #[test]
+    fn a_body_that_leaves_or_speeds_fails_and_is_counted_once() {
+        let mut w = world(&[
+            (DVec2::ZERO, DVec2::new(60.0, 0.0), 1.0),
+            (DVec2::new(0.0, 5.0), DVec2::ZERO, 1.0),
+        ]);
+        let criteria = Criteria {
+            steps: 30,
+            inside: Some([DVec2::splat(-10.0), DVec2::splat(10.0)]),
+            speed: Some(50.0),
+            drift: Some(100.0),
+            ..Criteria::for_test()
+        };
+        let mut m = Monitor::new(&w, &criteria);
+        for _ in 0..30 {
+            w.step();
+            m.observe(&w);
+        }
+        let v = m.verdict();
+        let get = |n| v.iter().find(|j| j.name == n).unwrap().clone();
+        assert_eq!(get("inside").figure, 1.0);
+        assert!(!get("inside").pass);
+        assert!(!get("speed").pass);
+        assert!(get("drift").pass, "{:?}", get("drift"));
+        assert!(!m.holds());
+    }
+
+    #[test]
+    fn energy_rise_is_measured_above_the_low_so_far() {
+        let mut e = EnergyWatch::new(4.0);
+        assert_eq!(e.see(3.0), 0.0);
+        assert_eq!(e.see(1.0), 0.0);
+        // Back up from the low of 1 to 4: three quarters of the start.
+        assert_eq!(e.see(4.0), 0.75);
+        assert_eq!(e.see(2.0), 0.75);
+        assert_eq!(e.see(f64::NAN), f64::INFINITY);
+    }
+
+    impl Criteria {
+        fn for_test() -> Criteria {
+            Criteria {
+                steps: 600,
+                inside: None,
+                drift: None,
+                overlap: Some(1.0),
+                final_overlap: None,
+                speed: None,
+                final_speed: None,
+                energy_rise: None,
+            }
+        }
+    }
+}

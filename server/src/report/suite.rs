@@ -1,0 +1,312 @@
+//! The suite of scene kinds (`assets/scenes/suite/`) under named settings, each scene held
+//! to the criteria it states (`ricochet-server suite`): which settings hold which kinds,
+//! and what a step costs over the whole run (start-up included), mean beside median.
+//!
+//! The first setting is the default a scene that names no solver gets; the others take
+//! one of its parts away or are the settings it replaced, so each row says what that part
+//! buys.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use ricochet_engine::criteria::{Judgement, Monitor};
+use ricochet_engine::scene;
+
+use super::percentile;
+
+/// A setting measured on every scene: a label and `[world]` overrides.
+pub struct Setting {
+    pub label: &'static str,
+    pub overrides: &'static [&'static str],
+}
+
+/// The default, then what it replaced and what it is without each of its parts.
+pub const SETTINGS: &[Setting] = &[
+    Setting {
+        label: "the default",
+        overrides: &[],
+    },
+    Setting {
+        label: "the default without the resting load",
+        overrides: &["rest_load=false"],
+    },
+    Setting {
+        label: "the default without split impulses",
+        overrides: &["split_impulses=false", "slop=0.001"],
+    },
+    Setting {
+        label: "the default at 1 sub-step of 4 passes",
+        overrides: &["substeps=1", "impulse_iterations=4"],
+    },
+    Setting {
+        label: "the chapter's relaxation",
+        overrides: &["solver=relaxation"],
+    },
+    Setting {
+        label: "impulses as before: 8 passes, 1 sub-step",
+        overrides: &[
+            "impulse_iterations=8",
+            "substeps=1",
+            "split_impulses=false",
+            "slop=0.001",
+            "rest_load=false",
+            "broad_phase=sweep",
+        ],
+    },
+    Setting {
+        label: "pyramid-100's former setting: 300 start passes",
+        overrides: &[
+            "baumgarte=0.5",
+            "start_iterations=300",
+            "start_frames=20",
+            "rest_load=false",
+        ],
+    },
+    Setting {
+        label: "soft step (Box2D v3's): 4 sub-steps, 1 pass + 1 relax, 30 Hz",
+        overrides: &[
+            "substeps=4",
+            "impulse_iterations=1",
+            "relax_iterations=1",
+            "contact_hertz=30",
+            "split_impulses=false",
+            "slop=0.001",
+            "rest_load=false",
+        ],
+    },
+];
+
+/// One scene under one setting.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub setting: String,
+    pub overrides: String,
+    pub bodies: usize,
+    pub steps: u64,
+    /// Mean wall time of a step over every step of the run, in milliseconds.
+    pub ms_mean: f64,
+    pub ms_median: f64,
+    /// Every stated criterion held.
+    pub holds: bool,
+    /// Each criterion as `name figure/limit`, `!` before a failed one.
+    pub criteria: String,
+    #[serde(skip)]
+    pub verdict: Vec<Judgement>,
+}
+
+/// The suite's scenes in `dir`, by name.
+pub fn scenes(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .with_context(|| format!("cannot read {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    out.sort();
+    Ok(out)
+}
+
+/// Runs `path` under `overrides` for the steps its criteria ask, timing every step.
+pub fn measure(path: &Path, label: &str, overrides: &[&str]) -> Result<Row> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
+    let mut world = scene::parse(&text, path, &overrides)?;
+    let criteria = scene::criteria(&text, path)?
+        .with_context(|| format!("{} states no [criteria]", path.display()))?;
+    let mut monitor = Monitor::new(&world, &criteria);
+    let mut times = Vec::with_capacity(criteria.steps as usize);
+    for _ in 0..criteria.steps {
+        let t = Instant::now();
+        world.step();
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        monitor.observe(&world);
+    }
+    let ms_mean = times.iter().sum::<f64>() / times.len() as f64;
+    times.sort_by(f64::total_cmp);
+    let verdict = monitor.verdict();
+    Ok(Row {
+        scene: path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        setting: label.to_string(),
+        overrides: overrides.join(" "),
+        bodies: world.bodies().len(),
+        steps: criteria.steps,
+        ms_mean,
+        ms_median: percentile(&times, 0.5),
+        holds: verdict.iter().all(|j| j.pass),
+        criteria: verdict
+            .iter()
+            .map(|j| {
+                format!(
+                    "{}{} {}/{}",
+                    if j.pass { "" } else { "!" },
+                    j.name,
+                    figure(j.figure),
+                    j.limit
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(" "),
+        verdict,
+    })
+}
+
+fn figure(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e4).contains(&v.abs()) {
+        format!("{v:.4}")
+    } else {
+        format!("{v:.2e}")
+    }
+}
+
+/// Every scene of `dir` (whose name contains `only`, if given) under every setting, in
+/// the order of [`SETTINGS`], each run ticking `progress`.
+pub fn run_all(
+    dir: &Path,
+    only: Option<&str>,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<Row>> {
+    let scenes: Vec<PathBuf> = scenes(dir)?
+        .into_iter()
+        .filter(|p| only.is_none_or(|o| p.to_string_lossy().contains(o)))
+        .collect();
+    progress.set_length((scenes.len() * SETTINGS.len()) as u64);
+    let mut rows = Vec::new();
+    for setting in SETTINGS {
+        for path in &scenes {
+            progress.set_message(format!("{} / {}", path.display(), setting.label));
+            rows.push(measure(path, setting.label, setting.overrides)?);
+            progress.inc(1);
+        }
+    }
+    Ok(rows)
+}
+
+/// Writes `dir/suite.csv` and the tables into `dir/README.md` (between its `suite`
+/// markers), headed by the command that measured them.
+pub fn write(dir: &Path, rows: &[Row], command: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::write(dir.join("suite.csv"), to_csv(rows)?)?;
+    super::splice(
+        &dir.join("README.md"),
+        "suite",
+        &format!(
+            "Measured by `{command}` on {}.\n\n{}",
+            super::machine(),
+            to_markdown(rows)
+        ),
+    )
+}
+
+/// The rows as CSV.
+pub fn to_csv(rows: &[Row]) -> Result<String> {
+    let mut out = csv::Writer::from_writer(Vec::new());
+    for r in rows {
+        out.serialize(r)?;
+    }
+    Ok(String::from_utf8(out.into_inner()?)?)
+}
+
+/// Two Markdown tables: every scene under the first setting (time and each criterion),
+/// then every setting's count of scenes held, the scenes it fails and its summed time.
+pub fn to_markdown(rows: &[Row]) -> String {
+    let Some(first) = rows.first().map(|r| r.setting.clone()) else {
+        return String::new();
+    };
+    let mut out = format!(
+        "Every scene under {first}:\n\n| scene | bodies | steps | mean ms/step (whole run) | median | criteria (figure / limit) | holds |\n|---|---|---|---|---|---|---|\n"
+    );
+    for r in rows.iter().filter(|r| r.setting == first) {
+        let criteria: Vec<String> = r
+            .verdict
+            .iter()
+            .map(|j| {
+                let text = format!("{} {} / {}", j.name, figure(j.figure), j.limit);
+                if j.pass {
+                    text
+                } else {
+                    format!("**{text}**")
+                }
+            })
+            .collect();
+        out += &format!(
+            "| {} | {} | {} | {:.3} | {:.3} | {} | {} |\n",
+            r.scene,
+            r.bodies,
+            r.steps,
+            r.ms_mean,
+            r.ms_median,
+            criteria.join(", "),
+            if r.holds { "yes" } else { "**no**" }
+        );
+    }
+    out += "\nEvery setting (the criteria a scene fails, in bold above for the first):\n\n| setting | overrides | scenes held | fails | sum of mean ms/step |\n|---|---|---|---|---|\n";
+    let mut settings: Vec<&str> = Vec::new();
+    for r in rows {
+        if !settings.contains(&r.setting.as_str()) {
+            settings.push(&r.setting);
+        }
+    }
+    for s in settings {
+        let mine: Vec<&Row> = rows.iter().filter(|r| r.setting == s).collect();
+        let held = mine.iter().filter(|r| r.holds).count();
+        let fails: Vec<String> = mine
+            .iter()
+            .filter(|r| !r.holds)
+            .map(|r| {
+                let failed: Vec<&str> = r
+                    .verdict
+                    .iter()
+                    .filter(|j| !j.pass)
+                    .map(|j| j.name)
+                    .collect();
+                format!("{} ({})", r.scene, failed.join(", "))
+            })
+            .collect();
+        let total: f64 = mine.iter().map(|r| r.ms_mean).sum();
+        out += &format!(
+            "| {s} | `{}` | {held} of {} | {} | {total:.2} |\n",
+            mine[0].overrides,
+            mine.len(),
+            if fails.is_empty() {
+                "none".to_string()
+            } else {
+                fails.join("; ")
+            }
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scene_is_measured_against_its_criteria_and_tabled() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/suite");
+        let path = dir.join("plank.toml");
+        let held = measure(&path, "the default", &[]).unwrap();
+        let crushed = measure(&path, "the chapter's relaxation", &["solver=relaxation"]).unwrap();
+        assert!(held.holds, "{}", held.criteria);
+        assert!(!crushed.holds, "{}", crushed.criteria);
+        assert!(held.ms_mean > 0.0 && held.ms_median > 0.0);
+        let table = to_markdown(&[held, crushed]);
+        assert!(table.contains("| plank | 4 | 600 |"), "{table}");
+        assert!(
+            table.contains("| the chapter's relaxation | `solver=relaxation` | 0 of 1 | plank (drift, overlap) |"),
+            "{table}"
+        );
+        let csv = to_csv(&[measure(&path, "x", &[]).unwrap()]).unwrap();
+        assert!(
+            csv.starts_with("scene,setting,overrides,bodies,steps,ms_mean"),
+            "{csv}"
+        );
+    }
+}
