@@ -30,9 +30,10 @@ SCENES = ["stack-20", "far-from-origin", "pyramid-10", "mass-ratio-1000", "overl
 SIZES = {"tiny": 1e-3, "huge": 1e4, "mass-ratio-1000": 2.0, "coincident": 1.0, "tunnelling": 0.1}
 # The settings docs/engine.md shows: marker name, overrides.
 DOC_SETTINGS = [
-    ("stability-impulses", ["solver=impulses", "substeps=2"]),
-    ("stability-split", ["solver=impulses", "substeps=2", "split_impulses=true", "broad_phase=grid"]),
-    ("stability-chapter", []),
+    ("stability-default", []),
+    ("stability-impulses", ["impulse_iterations=8", "substeps=2", "split_impulses=false",
+                            "rest_load=false", "slop=0.001", "broad_phase=sweep"]),
+    ("stability-chapter", ["solver=relaxation"]),
 ]
 
 

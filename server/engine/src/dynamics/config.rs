@@ -16,6 +16,8 @@ pub enum Integrator {
     #[default]
     Symplectic,
     /// Explicit Euler: `p += v_old dt; v += a dt`. Kept for comparison: it gains energy.
+    /// Under the impulse solver a body a contact pushed in the step moves as symplectic
+    /// Euler (its contact set its velocity).
     Explicit,
     /// Exact for constant acceleration: `p += v_old dt + a dt²/2; v += a dt`. A body in
     /// flight follows the closed form to rounding; under the impulse solver a body that a
@@ -27,6 +29,17 @@ impl Integrator {
     /// The name scenes and settings use (as serde spells it).
     pub fn name(self) -> &'static str {
         self.into()
+    }
+
+    /// The share of `a h²` a step of `h` adds to the position beyond `v_old h`, for the
+    /// integrators that are not symplectic Euler (which adds all of it): explicit Euler
+    /// none, the closed form a half. None for symplectic Euler.
+    pub fn gravity_share(self) -> Option<f64> {
+        match self {
+            Integrator::Symplectic => None,
+            Integrator::Explicit => Some(0.0),
+            Integrator::Exact => Some(0.5),
+        }
     }
 }
 

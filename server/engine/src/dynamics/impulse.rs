@@ -76,9 +76,11 @@ pub struct ImpulseParams {
     /// The frame's time step.
     pub dt: f64,
     pub substeps: u32,
-    /// Move bodies no contact pushed by the closed form of constant acceleration
-    /// (`p += v_old h + a h²/2`) instead of symplectic Euler (`p += v_new h`).
-    pub exact_flight: bool,
+    /// How bodies no contact pushed in a sub-step move (`integrator`): symplectic Euler
+    /// `p += v_new h`, explicit Euler `p += v_old h`, or the closed form of constant
+    /// acceleration `p += v_old h + a h²/2`. A body a contact pushed moves by the velocity
+    /// the contact left it (symplectic).
+    pub flight: crate::dynamics::config::Integrator,
     /// Threads the passes may use (the result is the same for any count: see [`blocks`]).
     pub threads: u32,
     /// Start this frame's touching contacts from the load each carries at rest, against
@@ -446,7 +448,7 @@ pub fn solve_frame(
                     report.residual = change * h;
                 }
             }
-            if params.exact_flight {
+            if let Some(share) = params.flight.gravity_share() {
                 pushed.clear();
                 pushed.resize(sb.len(), false);
                 for c in buckets.iter().flatten() {
@@ -455,11 +457,11 @@ pub fn solve_frame(
                         pushed[c.b as usize] = true;
                     }
                 }
-                // In flight: `p += v_old h + g h²/2`, with `v_old = v - g h`.
+                // In flight: `p += v_old h + share g h²`, with `v_old = v - g h`.
                 for (k, (body, &g)) in sb.iter_mut().zip(gain.iter()).enumerate() {
                     body.delta += (body.vel + body.pseudo) * h;
                     if !pushed[k] {
-                        body.delta -= g * (0.5 * h * h);
+                        body.delta -= g * ((1.0 - share) * h * h);
                     }
                     body.pseudo = DVec2::ZERO;
                 }

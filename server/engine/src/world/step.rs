@@ -336,7 +336,7 @@ impl World {
             split_impulses: config.split_impulses,
             dt: h,
             substeps: config.substeps,
-            exact_flight: config.integrator == Integrator::Exact,
+            flight: config.integrator,
             threads: config.threads,
             rest_load: (config.rest_load && self.frame == 0)
                 .then(|| (-config.gravity).try_normalize())

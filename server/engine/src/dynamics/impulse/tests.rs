@@ -46,7 +46,7 @@ fn params() -> ImpulseParams {
         split_impulses: false,
         dt: 1.0 / 60.0,
         substeps: 1,
-        exact_flight: false,
+        flight: crate::dynamics::config::Integrator::Symplectic,
         threads: 1,
         rest_load: None,
     }
