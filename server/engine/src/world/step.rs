@@ -19,9 +19,11 @@ impl World {
     /// Advances the world by one fixed step.
     ///
     /// With the chapter's relaxation and one sub-step this is the chapter's order: move
-    /// bodies, move particles, then every interaction in declaration order. With sub-steps
-    /// or the impulse solver, the rigid bodies take their sub-steps first (move and
-    /// resolve), then the particles move and meet the shapes where they ended.
+    /// bodies, move particles, then the rigid interactions in declaration order, then the
+    /// particle interactions in declaration order (the chapter's demos declare theirs
+    /// last). With sub-steps or the impulse solver, the rigid bodies take their sub-steps
+    /// first (move and resolve), then the particles move and meet the shapes where they
+    /// ended.
     pub fn step(&mut self) {
         let mut stats = StepStats::default();
         let energy_before = match self.last_energy {
@@ -52,7 +54,8 @@ impl World {
             self.sweep_fast_bodies(dt);
             self.explode_dye_packs_on_hero();
             self.move_particles();
-            self.run_interactions(&mut stats, true, true, dt);
+            self.relax_interactions(&mut stats, dt);
+            self.particle_interactions(&mut stats);
         } else {
             let n = self.config.substeps.max(1);
             match self.config.solver {
@@ -61,7 +64,7 @@ impl World {
                     for _ in 0..n {
                         integrate_bodies(&mut self.bodies, &self.movers, &self.config, h);
                         self.sweep_fast_bodies(h);
-                        self.run_interactions(&mut stats, true, false, h);
+                        self.relax_interactions(&mut stats, h);
                     }
                 }
                 Solver::Impulses => {
@@ -73,7 +76,7 @@ impl World {
             }
             self.explode_dye_packs_on_hero();
             self.move_particles();
-            self.run_interactions(&mut stats, false, true, dt);
+            self.particle_interactions(&mut stats);
         }
         if self.sleeping > 0 {
             sleep::thaw(&mut self.bodies, &self.movers);
@@ -173,15 +176,9 @@ impl World {
         self.run_emitters();
     }
 
-    /// The declared interactions in order: the rigid ones by relaxation (if `rigid`), the
-    /// particle ones by projection (if `particles`).
-    pub(super) fn run_interactions(
-        &mut self,
-        stats: &mut StepStats,
-        rigid: bool,
-        particles: bool,
-        dt: f64,
-    ) {
+    /// The rigid interactions in declaration order, each by the chapter's relaxation over
+    /// `dt` (or only flagged, when it does not resolve).
+    pub(super) fn relax_interactions(&mut self, stats: &mut StepStats, dt: f64) {
         let params = RelaxationParams {
             iterations: self.config.relaxation_iterations,
             correction_rate: self.config.correction_rate,
@@ -192,82 +189,90 @@ impl World {
         };
         for k in 0..self.interactions.len() {
             let inter = self.interactions[k];
-            match (inter.a, inter.b) {
-                (Side::Group(a), Side::Group(b)) if rigid => {
-                    if self.groups[a as usize].members.is_empty()
-                        || self.groups[b as usize].members.is_empty()
-                    {
-                        continue;
-                    }
-                    let report = if !inter.resolve {
+            let (Side::Group(a), Side::Group(b)) = (inter.a, inter.b) else {
+                continue;
+            };
+            if self.groups[a as usize].members.is_empty()
+                || self.groups[b as usize].members.is_empty()
+            {
+                continue;
+            }
+            let report = if !inter.resolve {
+                let (ga, gb) = (
+                    &self.groups[a as usize].members,
+                    &self.groups[b as usize].members,
+                );
+                relaxation::detect_only(&mut self.bodies, ga, gb)
+            } else {
+                match self.config.broad_phase {
+                    BroadPhase::AllPairs => {
                         let (ga, gb) = (
                             &self.groups[a as usize].members,
                             &self.groups[b as usize].members,
                         );
-                        relaxation::detect_only(&mut self.bodies, ga, gb)
-                    } else {
-                        match self.config.broad_phase {
-                            BroadPhase::AllPairs => {
-                                let (ga, gb) = (
-                                    &self.groups[a as usize].members,
-                                    &self.groups[b as usize].members,
-                                );
-                                relaxation::relax(&mut self.bodies, ga, gb, params)
-                            }
-                            BroadPhase::Sweep | BroadPhase::Grid => {
-                                let mut pairs = std::mem::take(&mut self.pairs);
-                                self.candidates(a, b, dt, &mut pairs);
-                                let report =
-                                    relaxation::relax_pairs(&mut self.bodies, &pairs, params);
-                                self.pairs = pairs;
-                                report
-                            }
-                        }
-                    };
-                    stats.contacts += report.contacts;
-                    stats.relaxation_iterations += report.iterations as u64;
-                    stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
-                    stats.residual = stats.residual.max(report.residual);
-                }
-                (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g))
-                    if particles =>
-                {
-                    if self.particles.is_empty() || !inter.resolve {
-                        continue;
+                        relaxation::relax(&mut self.bodies, ga, gb, params)
                     }
-                    let members = &self.groups[g as usize].members;
-                    let shapes: Vec<ParticleShape> = members
-                        .iter()
-                        .map(|&i| {
-                            let body = &self.bodies[i as usize];
-                            let centre = body.pos.as_vec2();
-                            match body.shape {
-                                Shape::Rect { half } => ParticleShape::Rect {
-                                    centre,
-                                    half: half.as_vec2(),
-                                },
-                                Shape::Circle { radius } => ParticleShape::Circle {
-                                    centre,
-                                    radius: radius as f32,
-                                },
-                            }
-                        })
-                        .collect();
-                    // Many shapes: bin them so each particle meets only its neighbours
-                    // (same result as shape after shape, tested); a few: shape after shape.
-                    let grid = if shapes.len() >= PARTICLE_GRID_MIN_SHAPES {
-                        ShapeGrid::build(shapes.clone())
-                    } else {
-                        None
-                    };
-                    let threads = self.config.threads;
-                    stats.particle_contacts += match grid {
-                        Some(grid) => self.particles.project_out_of_grid_on(&grid, threads),
-                        None => self.particles.project_out_of_shapes_on(&shapes, threads),
-                    };
+                    BroadPhase::Sweep | BroadPhase::Grid => {
+                        let mut pairs = std::mem::take(&mut self.pairs);
+                        self.candidates(a, b, dt, &mut pairs);
+                        let report = relaxation::relax_pairs(&mut self.bodies, &pairs, params);
+                        self.pairs = pairs;
+                        report
+                    }
                 }
-                _ => {}
+            };
+            stats.contacts += report.contacts;
+            stats.relaxation_iterations += report.iterations as u64;
+            stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
+            stats.residual = stats.residual.max(report.residual);
+        }
+    }
+
+    /// The particle interactions in declaration order: every particle inside a shape of
+    /// the group is projected out to its boundary, where the rigid bodies are now.
+    pub(super) fn particle_interactions(&mut self, stats: &mut StepStats) {
+        if self.particles.is_empty() {
+            return;
+        }
+        for k in 0..self.interactions.len() {
+            let inter = self.interactions[k];
+            let g = match (inter.a, inter.b) {
+                (Side::Group(g), Side::Particles) | (Side::Particles, Side::Group(g)) => g,
+                _ => continue,
+            };
+            if !inter.resolve {
+                continue;
             }
+            let members = &self.groups[g as usize].members;
+            let shapes: Vec<ParticleShape> = members
+                .iter()
+                .map(|&i| {
+                    let body = &self.bodies[i as usize];
+                    let centre = body.pos.as_vec2();
+                    match body.shape {
+                        Shape::Rect { half } => ParticleShape::Rect {
+                            centre,
+                            half: half.as_vec2(),
+                        },
+                        Shape::Circle { radius } => ParticleShape::Circle {
+                            centre,
+                            radius: radius as f32,
+                        },
+                    }
+                })
+                .collect();
+            // Many shapes: bin them so each particle meets only its neighbours (same
+            // result as shape after shape, tested); a few: shape after shape.
+            let grid = if shapes.len() >= PARTICLE_GRID_MIN_SHAPES {
+                ShapeGrid::build(shapes.clone())
+            } else {
+                None
+            };
+            let threads = self.config.threads;
+            stats.particle_contacts += match grid {
+                Some(grid) => self.particles.project_out_of_grid_on(&grid, threads),
+                None => self.particles.project_out_of_shapes_on(&shapes, threads),
+            };
         }
     }
 
