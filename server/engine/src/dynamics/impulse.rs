@@ -22,10 +22,8 @@
 
 use glam::DVec2;
 
-use self::blocks::Bodies;
 use super::body::{Body, BodyKey};
 pub use super::pairs::Pair;
-use crate::geometry::separation;
 
 /// The fastest the position bias pushes overlapping bodies apart, in body sizes per
 /// second: a deep overlap (a spawn on top of another body, coincident centres) is undone
@@ -255,6 +253,37 @@ pub struct SolverBuffers {
     pushed: Vec<bool>,
 }
 
+/// How the biased passes push touching contacts apart, against dynamic bodies and against
+/// static ones.
+#[derive(Clone, Copy, Debug)]
+struct Biases {
+    push: Bias,
+    push_fixed: Bias,
+}
+
+impl Biases {
+    /// Soft contacts (springs, twice as stiff against static bodies) when
+    /// `contact_hertz` is above 0, else the rigid Baumgarte rate.
+    fn of(params: &ImpulseParams, h: f64) -> Biases {
+        if params.contact_hertz > 0.0 {
+            let hertz = params.contact_hertz.min(0.25 / h);
+            Biases {
+                push: Bias::soft(hertz, params.contact_damping, h),
+                push_fixed: Bias::soft(2.0 * hertz, params.contact_damping, h),
+            }
+        } else {
+            let rigid = Bias {
+                rate: params.baumgarte / h,
+                ..Bias::NONE
+            };
+            Biases {
+                push: rigid,
+                push_fixed: rigid,
+            }
+        }
+    }
+}
+
 /// One frame of the impulse solver over the candidate `pairs` (body indices, `a < b`,
 /// each carrying last step's impulses, which it leaves this step's in). Contacts are found
 /// once; then `substeps` sub-steps of `dt / substeps` each run: gravity, warm start,
@@ -273,52 +302,9 @@ pub fn solve_frame(
     accel: impl Fn(&Body) -> DVec2 + Sync,
     flagged: &mut Vec<u32>,
 ) -> ImpulseReport {
-    let frame_dt = params.dt;
     let substeps = params.substeps.max(1);
-    let h = frame_dt / substeps as f64;
-    let inv_h = 1.0 / h;
+    let h = params.dt / substeps as f64;
     let mut report = ImpulseReport::default();
-
-    let SolverBuffers {
-        bodies: sb,
-        slot,
-        slotted,
-        accel: gain,
-        buckets,
-        found,
-        block_of,
-        blocks_for,
-        frames_since_cut,
-        places,
-        cut_scratch,
-        pushed,
-    } = buffers;
-    if slot.len() < bodies.len() {
-        slot.resize(bodies.len(), UNSLOTTED);
-    }
-    sb.clear();
-    slotted.clear();
-    // A body's place among the solver's bodies, given at its first use.
-    let mut place = |i: u32, sb: &mut Vec<SolverBody>| -> u32 {
-        let s = &mut slot[i as usize];
-        if *s == UNSLOTTED {
-            let b = &bodies[i as usize];
-            *s = sb.len() as u32;
-            sb.push(SolverBody {
-                vel: b.vel,
-                pseudo: DVec2::ZERO,
-                delta: DVec2::ZERO,
-                inv_mass: b.inv_mass,
-            });
-            slotted.push(i);
-        }
-        *s
-    };
-    // The movers first: mover k is solver body k.
-    for &i in movers {
-        place(i, sb);
-    }
-    gain.clear();
     // What a body gains per second: static bodies gain nothing.
     let gains = |body: &Body| {
         if body.inv_mass > 0.0 {
@@ -327,468 +313,62 @@ pub fn solve_frame(
             DVec2::ZERO
         }
     };
-    gain.extend(movers.iter().map(|&i| gains(&bodies[i as usize])));
-
-    let moving = movers.len();
-    let block_count = blocks::block_count(moving);
-    // The blocks, cut from where the movers are (not every frame: the cut costs about
-    // as much as a tenth of a pass on the pyramid, and a pile hardly moves).
-    *frames_since_cut += 1;
-    if blocks_for.as_slice() != movers
-        || block_of.len() != moving
-        || *frames_since_cut >= blocks::RECUT_FRAMES
-    {
-        places.clear();
-        places.extend(movers.iter().map(|&i| bodies[i as usize].pos));
-        blocks::assign(places, block_count, block_of, cut_scratch);
-        blocks_for.clear();
-        blocks_for.extend_from_slice(movers);
-        *frames_since_cut = 0;
-    }
-    buckets.resize_with(block_count + 1, Vec::new);
-    buckets.truncate(block_count + 1);
-    for bucket in buckets.iter_mut() {
-        bucket.clear();
-    }
-    // Every body of a pair gets its place first (the movers have theirs), so that the
-    // contacts can then be found on several threads, each pair on its own.
-    for pair in pairs.iter() {
-        place(pair.a, sb);
-        place(pair.b, sb);
-    }
-    let find = Finder {
-        bodies,
+    (report.contacts, report.deepest) =
+        prepare::prepare(bodies, pairs, params, buffers, movers, &gains);
+    let SolverBuffers {
+        bodies: sb,
         slot,
-        block_of,
-        moving,
-        block_count,
-        params,
-        gains: &gains,
-    };
-    // Contiguous runs of pairs, each filling its own buckets: the first run the solver's,
-    // the others spares appended after it in order, so every bucket lists its contacts
-    // in the order of the pairs whatever the thread count.
-    let (runs, size) = crate::parallel::chunking(params.threads, pairs.len());
-    found.resize_with(runs.saturating_sub(1), Vec::new);
-    for spare in found.iter_mut() {
-        spare.resize_with(block_count + 1, Vec::new);
-        spare.truncate(block_count + 1);
-        spare.iter_mut().for_each(Vec::clear);
-    }
-    let outs = std::iter::once(&mut buckets[..]).chain(found.iter_mut().map(|f| &mut f[..]));
-    let work: Vec<_> = pairs
-        .chunks_mut(size.max(1))
-        .enumerate()
-        .zip(outs)
-        .collect();
-    let partial = crate::parallel::run(params.threads, work, |((run, pairs), out)| {
-        find.contacts(pairs, run * size, out)
-    });
-    for (contacts, deepest) in partial {
-        report.contacts += contacts;
-        report.deepest = report.deepest.max(deepest);
-    }
-    for spare in found.iter_mut() {
-        for (bucket, more) in buckets.iter_mut().zip(spare.iter()) {
-            bucket.extend_from_slice(more);
-        }
-    }
-
+        slotted,
+        accel: gain,
+        buckets,
+        pushed,
+        ..
+    } = buffers;
     if let Some(up) = params.rest_load {
         load::rest(buckets, sb, gain, bodies, slotted, h, up);
     }
-
-    let (push, push_fixed) = if params.contact_hertz > 0.0 {
-        let hertz = params.contact_hertz.min(0.25 / h);
-        (
-            Bias::soft(hertz, params.contact_damping, h),
-            Bias::soft(2.0 * hertz, params.contact_damping, h),
-        )
-    } else {
-        let rigid = Bias {
-            rate: params.baumgarte * inv_h,
-            ..Bias::NONE
-        };
-        (rigid, rigid)
-    };
-
-    // One block has nothing to split: the frame stays on the calling thread (no hand-over
-    // to the pool for a small world that asked for threads).
-    let threads = if block_count > 1 { params.threads } else { 1 };
+    let bias = Biases::of(&params, h);
+    // One block (and the boundary) has nothing to split: the frame stays on the calling
+    // thread (no hand-over to the pool for a small world that asked for threads).
+    let threads = if buckets.len() > 2 { params.threads } else { 1 };
     let mut bouncing = buckets.iter().flatten().any(|c| c.bounce > 0.0);
     // The sub-steps run inside the pool, so each pass splits among threads already
     // running (one hand-over a frame, not one a pass).
     crate::parallel::install(threads, || {
         for step in 0..substeps {
-            for (body, &g) in sb.iter_mut().zip(gain.iter()) {
-                body.vel += g * h;
-            }
-            // Warm start: the impulses of the last sub-step (or frame) once more.
-            if params.warm_starting || params.rest_load.is_some() || step > 0 {
-                in_blocks(threads, sb, buckets, |bodies, c| {
-                    if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
-                        let t = DVec2::new(-c.normal.y, c.normal.x);
-                        apply(
-                            bodies,
-                            c,
-                            c.normal * c.normal_impulse + t * c.tangent_impulse,
-                        );
-                    }
-                    0.0
-                });
-            }
             let last_step = step + 1 == substeps;
-            for k in 0..params.iterations {
-                // Split impulses start from nothing each sub-step.
-                let fresh = params.split_impulses && k == 0;
-                report.passes += 1;
-                let args = (push, push_fixed, inv_h, params.split_impulses, fresh);
-                let last = last_step && params.relax_iterations == 0 && k + 1 == params.iterations;
-                if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
-                    report.residual = change * h;
-                }
+            passes::integrate_velocities(sb, gain, h);
+            if params.warm_starting || params.rest_load.is_some() || step > 0 {
+                passes::warm_start(threads, sb, buckets);
             }
-            if let Some(share) = params.flight.gravity_share() {
-                pushed.clear();
-                pushed.resize(sb.len(), false);
-                for c in buckets.iter().flatten() {
-                    if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
-                        pushed[c.a as usize] = true;
-                        pushed[c.b as usize] = true;
-                    }
-                }
-                // In flight: `p += v_old h + share g h²`, with `v_old = v - g h`.
-                for (k, (body, &g)) in sb.iter_mut().zip(gain.iter()).enumerate() {
-                    body.delta += (body.vel + body.pseudo) * h;
-                    if !pushed[k] {
-                        body.delta -= g * ((1.0 - share) * h * h);
-                    }
-                    body.pseudo = DVec2::ZERO;
-                }
-            } else {
-                for body in &mut sb[..movers.len()] {
-                    body.delta += (body.vel + body.pseudo) * h;
-                    body.pseudo = DVec2::ZERO;
-                }
-            }
-            for k in 0..params.relax_iterations {
-                report.passes += 1;
-                let args = (Bias::NONE, Bias::NONE, inv_h, false, false);
-                let last = last_step && k + 1 == params.relax_iterations;
-                if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
-                    report.residual = change * h;
-                }
-            }
-            // Restitution, once, for contacts that pushed: after the move, the normal velocity
-            // becomes the bounce of the approach speed the contact was found with (as Box2D
-            // applies it), so a contact that caught a body early still bounces it fully.
-            if !bouncing {
-                continue;
-            }
-            bouncing = false;
-            let bodies = Bodies::new(sb);
-            for c in buckets.iter_mut().flatten() {
-                if c.bounce > 0.0 && c.normal_impulse > 0.0 {
-                    let (a, b) = (c.a as usize, c.b as usize);
-                    let vn = (bodies.get(b).vel - bodies.get(a).vel).dot(c.normal);
-                    let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
-                    let p = c.normal * (total - c.normal_impulse);
-                    c.normal_impulse = total;
-                    apply(bodies, c, p);
-                    c.bounce = 0.0;
-                }
-                bouncing |= c.bounce > 0.0;
+            passes::solve(
+                threads,
+                sb,
+                buckets,
+                &params,
+                bias,
+                h,
+                last_step,
+                &mut report,
+            );
+            passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());
+            passes::relax(threads, sb, buckets, &params, h, last_step, &mut report);
+            if bouncing {
+                bouncing = passes::restitution(sb, buckets);
             }
         }
     });
-
-    for (&i, s) in movers.iter().zip(sb.iter()) {
-        let body = &mut bodies[i as usize];
-        body.vel = s.vel;
-        body.pos += s.delta;
-    }
-    for c in buckets.iter().flatten() {
-        let pair = &mut pairs[c.pair as usize];
-        pair.normal = c.normal;
-        pair.normal_impulse = c.normal_impulse;
-        pair.tangent_impulse = c.tangent_impulse;
-        if c.normal_impulse > 0.0 {
-            for i in [pair.a, pair.b] {
-                let body = &mut bodies[i as usize];
-                if !body.collided {
-                    body.collided = true;
-                    flagged.push(i);
-                }
-            }
-        }
-    }
+    passes::store(bodies, pairs, movers, sb, buckets, flagged);
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
     }
     report
 }
 
-/// What finding a frame's contacts reads: the bodies, their places among the solver's
-/// bodies (all given), the blocks, the frame's settings and what each body gains per second.
-struct Finder<'a, G> {
-    bodies: &'a [Body],
-    slot: &'a [u32],
-    /// Each mover's block, by slot.
-    block_of: &'a [u16],
-    moving: usize,
-    block_count: usize,
-    params: ImpulseParams,
-    gains: &'a G,
-}
-
-impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
-    /// The contacts of `pairs` (the run starting at pair `first`), each pushed to its
-    /// bucket in `out`; each pair's impulses are taken (the solver leaves this frame's).
-    /// Returns the touching contacts and the deepest penetration among them.
-    fn contacts(&self, pairs: &mut [Pair], first: usize, out: &mut [Vec<Contact>]) -> (u64, f64) {
-        let (bodies, params, gains) = (self.bodies, self.params, self.gains);
-        let frame_dt = params.dt;
-        let (mut touching, mut deepest) = (0, 0.0_f64);
-        for (k, pair) in pairs.iter_mut().enumerate() {
-            let (i, j) = (pair.a, pair.b);
-            let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
-            let (old_n, jn, jt) = (pair.normal, pair.normal_impulse, pair.tangent_impulse);
-            pair.normal_impulse = 0.0;
-            pair.tangent_impulse = 0.0;
-            if a.inv_mass + b.inv_mass == 0.0 {
-                continue;
-            }
-            let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
-            let rel = b.vel - a.vel;
-            let size = a
-                .shape
-                .half_extents()
-                .min_element()
-                .min(b.shape.half_extents().min_element())
-                * 2.0;
-            // Too far apart to meet within the frame: no contact.
-            if gap > rel.length() * frame_dt + 0.1 * size {
-                continue;
-            }
-            if gap <= 0.0 {
-                touching += 1;
-                deepest = deepest.max(-gap);
-            }
-            // The approach speed at impact: a pair found apart closes its gap under its
-            // relative acceleration first, so it meets faster (or slower) than it was found
-            // moving (`v_i² = v² - 2 a s`, energy along the normal). Bouncing with the
-            // speed found would lose the energy gained over the gap at every bounce.
-            let approach = rel.dot(n);
-            let impact = if gap > 0.0 && approach < 0.0 {
-                let closing = approach * approach - 2.0 * (gains(b) - gains(a)).dot(n) * gap;
-                -closing.max(0.0).sqrt()
-            } else {
-                approach
-            };
-            let bounce = if impact < -RESTITUTION_SPEED {
-                -a.restitution.min(b.restitution) * impact
-            } else {
-                0.0
-            };
-            let slop = params.slop * size;
-            // Only contacts that touch, and are no impact, start from their last impulses.
-            let warm = params.warm_starting
-                && gap <= slop
-                && old_n.dot(n) > 0.99
-                && approach.abs() <= WARM_START_SPEED;
-            let (sa, sb) = (self.slot[i as usize], self.slot[j as usize]);
-            let bucket = blocks::bucket_of(
-                sa,
-                sb,
-                self.block_count,
-                // Moving: a mover (the first slots) that is not frozen for the step.
-                |s| {
-                    (s as usize) < self.moving
-                        && if s == sa {
-                            a.inv_mass != 0.0
-                        } else {
-                            b.inv_mass != 0.0
-                        }
-                },
-                |s| self.block_of[s as usize] as usize,
-            );
-            out[bucket].push(Contact {
-                a: sa,
-                b: sb,
-                normal: n,
-                mass: 1.0 / (a.inv_mass + b.inv_mass),
-                friction: (a.friction * b.friction).sqrt(),
-                gap,
-                slop,
-                bounce,
-                max_push: MAX_PUSH_OUT * size,
-                normal_impulse: if warm { jn } else { 0.0 },
-                tangent_impulse: if warm { jt } else { 0.0 },
-                pseudo_impulse: 0.0,
-                pair: (first + k) as u32,
-                // A bouncing pair closes its gap, however small, before it bounces:
-                // bouncing from short of the surface would give it the gap's height for
-                // nothing.
-                speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
-                fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
-            });
-        }
-        (touching, deepest)
-    }
-}
-
-/// One contact's share of a velocity pass: the normal impulse that brings the normal
-/// velocity to its target (never pulling), then friction within the Coulomb cone. With
-/// `MEASURE`, returns the normal velocity change it made (0 otherwise).
-/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses,
-/// and whether the split impulses start from nothing.
-#[inline(always)]
-fn solve_contact<const MEASURE: bool>(
-    sb: Bodies,
-    c: &mut Contact,
-    args: (Bias, Bias, f64, bool, bool),
-) -> f64 {
-    let (push, push_fixed, inv_h, split, fresh) = args;
-    {
-        if fresh {
-            c.pseudo_impulse = 0.0;
-        }
-        let (a, b) = (c.a as usize, c.b as usize);
-        let (ba, bb) = (sb.get(a), sb.get(b));
-        let dv = bb.vel - ba.vel;
-        // Separation now: the frame's start plus how far the bodies moved since.
-        let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
-        let bias = if c.fixed { push_fixed } else { push };
-        let (target, mass_scale, impulse_scale) = if c.speculative && gap > 0.0 {
-            // Apart when found: close the gap within this sub-step, no further.
-            (-gap * inv_h, 1.0, 0.0)
-        } else {
-            // Touching: hold, push out what exceeds the slop.
-            let pen = (-gap - c.slop).max(0.0);
-            if pen > 0.0 && split {
-                // The push goes to the pseudo-velocities; the velocity only holds.
-                let target = (bias.rate * pen).min(c.max_push);
-                let pv = (bb.pseudo - ba.pseudo).dot(c.normal);
-                let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
-                let p = c.normal * (total - c.pseudo_impulse);
-                c.pseudo_impulse = total;
-                sb.update(a, |s| s.pseudo -= p * ba.inv_mass);
-                sb.update(b, |s| s.pseudo += p * bb.inv_mass);
-                // The velocity holds, as softly as the contact is (rigid: fully).
-                (0.0, bias.mass_scale, bias.impulse_scale)
-            } else if pen > 0.0 {
-                (
-                    (bias.rate * pen).min(c.max_push),
-                    bias.mass_scale,
-                    bias.impulse_scale,
-                )
-            } else {
-                (0.0, 1.0, 0.0)
-            }
-        };
-        let vn = dv.dot(c.normal);
-        let total = (c.normal_impulse + mass_scale * c.mass * (target - vn)
-            - impulse_scale * c.normal_impulse)
-            .max(0.0);
-        let dn = total - c.normal_impulse;
-        c.normal_impulse = total;
-        // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
-        // (The normal impulse does not change the tangential velocity.)
-        let t = DVec2::new(-c.normal.y, c.normal.x);
-        let vt = dv.dot(t);
-        let limit = c.friction * c.normal_impulse;
-        let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
-        let dt_imp = total_t - c.tangent_impulse;
-        c.tangent_impulse = total_t;
-        let p = c.normal * dn + t * dt_imp;
-        sb.update(a, |s| s.vel -= p * ba.inv_mass);
-        sb.update(b, |s| s.vel += p * bb.inv_mass);
-        if MEASURE && c.mass > 0.0 {
-            return dn.abs() / c.mass;
-        }
-    }
-    0.0
-}
-
-/// One velocity pass over every contact; with `measure` (the frame's last pass), the
-/// largest normal velocity change it made.
-fn velocity_pass(
-    threads: u32,
-    sb: &mut [SolverBody],
-    buckets: &mut [Vec<Contact>],
-    args: (Bias, Bias, f64, bool, bool),
-    measure: bool,
-) -> Option<f64> {
-    if measure {
-        Some(in_blocks(threads, sb, buckets, |b, c| {
-            solve_contact::<true>(b, c, args)
-        }))
-    } else {
-        in_blocks(threads, sb, buckets, |b, c| {
-            solve_contact::<false>(b, c, args)
-        });
-        None
-    }
-}
-
-fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
-    let (a, b) = (c.a as usize, c.b as usize);
-    let (ia, ib) = (sb.get(a).inv_mass, sb.get(b).inv_mass);
-    sb.update(a, |s| s.vel -= impulse * ia);
-    sb.update(b, |s| s.vel += impulse * ib);
-}
-
-/// Runs `work` on every contact of every block (at once on up to `threads` threads when
-/// there are several blocks), then of the boundary; returns the largest of its results.
-///
-/// Two blocks a thread runs are interleaved, a contact of one then a contact of the
-/// other: they touch different bodies, so the processor overlaps the two instead of
-/// waiting on each contact's result for the next (consecutive contacts of one block
-/// share a body). The bits are those of one block after the other (four-way interleaving
-/// measured no faster).
-#[inline(always)]
-fn in_blocks(
-    threads: u32,
-    sb: &mut [SolverBody],
-    buckets: &mut [Vec<Contact>],
-    work: impl Fn(Bodies, &mut Contact) -> f64 + Sync + Send,
-) -> f64 {
-    let bodies = Bodies::new(sb);
-    let (blocks, boundary) = buckets.split_at_mut(buckets.len() - 1);
-    let n = crate::parallel::effective(threads).min(blocks.len());
-    let run = |group: &mut [Vec<Contact>]| {
-        let mut largest = 0.0_f64;
-        for two in group.chunks_mut(2) {
-            let (x, y) = match two {
-                [x, y] => (x.as_mut_slice(), y.as_mut_slice()),
-                [x] => (x.as_mut_slice(), &mut [][..]),
-                _ => unreachable!("chunks of one or two"),
-            };
-            let common = x.len().min(y.len());
-            let (x, x_rest) = x.split_at_mut(common);
-            let (y, y_rest) = y.split_at_mut(common);
-            for (p, q) in x.iter_mut().zip(y.iter_mut()) {
-                largest = largest.max(work(bodies, p));
-                largest = largest.max(work(bodies, q));
-            }
-            for c in x_rest.iter_mut().chain(y_rest.iter_mut()) {
-                largest = largest.max(work(bodies, c));
-            }
-        }
-        largest
-    };
-    let largest = if n > 1 {
-        crate::parallel::run(threads, blocks::groups(blocks, n), run)
-            .into_iter()
-            .fold(0.0, f64::max)
-    } else {
-        run(blocks)
-    };
-    largest.max(run(boundary))
-}
-
 mod blocks;
 mod load;
+mod passes;
+mod prepare;
 pub use blocks::{block_count, BLOCK_BODIES};
 
 #[cfg(test)]

@@ -1,0 +1,326 @@
+//! The stages of a sub-step, in the order the solver runs them (Box2D v3's
+//! `b2IntegrateVelocitiesTask`, `b2WarmStartContactsTask`, `b2SolveContactsTask`,
+//! `b2IntegratePositionsTask`, `b2RelaxContactsTask`, `b2ApplyRestitutionTask`,
+//! `b2StoreImpulsesTask`), and the velocity pass they share.
+
+use glam::DVec2;
+
+use super::blocks::{self, Bodies};
+use super::{Bias, Biases, Contact, ImpulseParams, ImpulseReport, Pair, SolverBody};
+use crate::dynamics::body::Body;
+use crate::dynamics::config::Integrator;
+
+/// Gravity: every mover gains what it gains per second over `h`.
+pub(super) fn integrate_velocities(sb: &mut [SolverBody], gain: &[DVec2], h: f64) {
+    for (body, &g) in sb.iter_mut().zip(gain.iter()) {
+        body.vel += g * h;
+    }
+}
+
+/// Warm start: the impulses of the last sub-step (or frame) once more.
+pub(super) fn warm_start(threads: u32, sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) {
+    in_blocks(threads, sb, buckets, |bodies, c| {
+        if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
+            let t = DVec2::new(-c.normal.y, c.normal.x);
+            apply(
+                bodies,
+                c,
+                c.normal * c.normal_impulse + t * c.tangent_impulse,
+            );
+        }
+        0.0
+    });
+}
+
+/// The biased passes: `iterations` of them, the position bias pushing touching contacts
+/// apart (into pseudo-velocities with split impulses). The frame's last pass measures the
+/// residual when no relax pass follows it.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn solve(
+    threads: u32,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    params: &ImpulseParams,
+    bias: Biases,
+    h: f64,
+    last_step: bool,
+    report: &mut ImpulseReport,
+) {
+    for k in 0..params.iterations {
+        // Split impulses start from nothing each sub-step.
+        let fresh = params.split_impulses && k == 0;
+        report.passes += 1;
+        let args = (
+            bias.push,
+            bias.push_fixed,
+            1.0 / h,
+            params.split_impulses,
+            fresh,
+        );
+        let last = last_step && params.relax_iterations == 0 && k + 1 == params.iterations;
+        if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
+            report.residual = change * h;
+        }
+    }
+}
+
+/// Positions move by the velocities (and the pseudo-velocities, then dropped): a body a
+/// contact pushed by symplectic Euler, one in flight as `flight` says. `pushed` is reused.
+pub(super) fn integrate_positions(
+    sb: &mut [SolverBody],
+    gain: &[DVec2],
+    buckets: &[Vec<Contact>],
+    pushed: &mut Vec<bool>,
+    flight: Integrator,
+    h: f64,
+    moving: usize,
+) {
+    if let Some(share) = flight.gravity_share() {
+        pushed.clear();
+        pushed.resize(sb.len(), false);
+        for c in buckets.iter().flatten() {
+            if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
+                pushed[c.a as usize] = true;
+                pushed[c.b as usize] = true;
+            }
+        }
+        // In flight: `p += v_old h + share g h²`, with `v_old = v - g h`.
+        for (k, (body, &g)) in sb.iter_mut().zip(gain.iter()).enumerate() {
+            body.delta += (body.vel + body.pseudo) * h;
+            if !pushed[k] {
+                body.delta -= g * ((1.0 - share) * h * h);
+            }
+            body.pseudo = DVec2::ZERO;
+        }
+    } else {
+        for body in &mut sb[..moving] {
+            body.delta += (body.vel + body.pseudo) * h;
+            body.pseudo = DVec2::ZERO;
+        }
+    }
+}
+
+/// The relax passes: velocity passes without bias after the positions moved, taking back
+/// the velocity the bias added. The frame's last measures the residual.
+pub(super) fn relax(
+    threads: u32,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    params: &ImpulseParams,
+    h: f64,
+    last_step: bool,
+    report: &mut ImpulseReport,
+) {
+    for k in 0..params.relax_iterations {
+        report.passes += 1;
+        let args = (Bias::NONE, Bias::NONE, 1.0 / h, false, false);
+        let last = last_step && k + 1 == params.relax_iterations;
+        if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
+            report.residual = change * h;
+        }
+    }
+}
+
+/// Restitution, once, for contacts that pushed: after the move, the normal velocity
+/// becomes the bounce of the approach speed the contact was found with (as Box2D applies
+/// it), so a contact that caught a body early still bounces it fully. Returns whether a
+/// contact is still to bounce (it has not pushed yet).
+pub(super) fn restitution(sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) -> bool {
+    let mut bouncing = false;
+    let bodies = Bodies::new(sb);
+    for c in buckets.iter_mut().flatten() {
+        if c.bounce > 0.0 && c.normal_impulse > 0.0 {
+            let (a, b) = (c.a as usize, c.b as usize);
+            let vn = (bodies.get(b).vel - bodies.get(a).vel).dot(c.normal);
+            let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
+            let p = c.normal * (total - c.normal_impulse);
+            c.normal_impulse = total;
+            apply(bodies, c, p);
+            c.bounce = 0.0;
+        }
+        bouncing |= c.bounce > 0.0;
+    }
+    bouncing
+}
+
+/// The movers' velocities and moves back into the world, each pair's impulses kept for
+/// the next frame, and the bodies a contact pushed flagged collided (listed in `flagged`).
+pub(super) fn store(
+    bodies: &mut [Body],
+    pairs: &mut [Pair],
+    movers: &[u32],
+    sb: &[SolverBody],
+    buckets: &[Vec<Contact>],
+    flagged: &mut Vec<u32>,
+) {
+    for (&i, s) in movers.iter().zip(sb.iter()) {
+        let body = &mut bodies[i as usize];
+        body.vel = s.vel;
+        body.pos += s.delta;
+    }
+    for c in buckets.iter().flatten() {
+        let pair = &mut pairs[c.pair as usize];
+        pair.normal = c.normal;
+        pair.normal_impulse = c.normal_impulse;
+        pair.tangent_impulse = c.tangent_impulse;
+        if c.normal_impulse > 0.0 {
+            for i in [pair.a, pair.b] {
+                let body = &mut bodies[i as usize];
+                if !body.collided {
+                    body.collided = true;
+                    flagged.push(i);
+                }
+            }
+        }
+    }
+}
+
+/// One contact's share of a velocity pass: the normal impulse that brings the normal
+/// velocity to its target (never pulling), then friction within the Coulomb cone. With
+/// `MEASURE`, returns the normal velocity change it made (0 otherwise).
+/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses,
+/// and whether the split impulses start from nothing.
+#[inline(always)]
+fn solve_contact<const MEASURE: bool>(
+    sb: Bodies,
+    c: &mut Contact,
+    args: (Bias, Bias, f64, bool, bool),
+) -> f64 {
+    let (push, push_fixed, inv_h, split, fresh) = args;
+    {
+        if fresh {
+            c.pseudo_impulse = 0.0;
+        }
+        let (a, b) = (c.a as usize, c.b as usize);
+        let (ba, bb) = (sb.get(a), sb.get(b));
+        let dv = bb.vel - ba.vel;
+        // Separation now: the frame's start plus how far the bodies moved since.
+        let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
+        let bias = if c.fixed { push_fixed } else { push };
+        let (target, mass_scale, impulse_scale) = if c.speculative && gap > 0.0 {
+            // Apart when found: close the gap within this sub-step, no further.
+            (-gap * inv_h, 1.0, 0.0)
+        } else {
+            // Touching: hold, push out what exceeds the slop.
+            let pen = (-gap - c.slop).max(0.0);
+            if pen > 0.0 && split {
+                // The push goes to the pseudo-velocities; the velocity only holds.
+                let target = (bias.rate * pen).min(c.max_push);
+                let pv = (bb.pseudo - ba.pseudo).dot(c.normal);
+                let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
+                let p = c.normal * (total - c.pseudo_impulse);
+                c.pseudo_impulse = total;
+                sb.update(a, |s| s.pseudo -= p * ba.inv_mass);
+                sb.update(b, |s| s.pseudo += p * bb.inv_mass);
+                // The velocity holds, as softly as the contact is (rigid: fully).
+                (0.0, bias.mass_scale, bias.impulse_scale)
+            } else if pen > 0.0 {
+                (
+                    (bias.rate * pen).min(c.max_push),
+                    bias.mass_scale,
+                    bias.impulse_scale,
+                )
+            } else {
+                (0.0, 1.0, 0.0)
+            }
+        };
+        let vn = dv.dot(c.normal);
+        let total = (c.normal_impulse + mass_scale * c.mass * (target - vn)
+            - impulse_scale * c.normal_impulse)
+            .max(0.0);
+        let dn = total - c.normal_impulse;
+        c.normal_impulse = total;
+        // Friction: stop the sliding, within the Coulomb cone of the normal impulse.
+        // (The normal impulse does not change the tangential velocity.)
+        let t = DVec2::new(-c.normal.y, c.normal.x);
+        let vt = dv.dot(t);
+        let limit = c.friction * c.normal_impulse;
+        let total_t = (c.tangent_impulse - c.mass * vt).clamp(-limit, limit);
+        let dt_imp = total_t - c.tangent_impulse;
+        c.tangent_impulse = total_t;
+        let p = c.normal * dn + t * dt_imp;
+        sb.update(a, |s| s.vel -= p * ba.inv_mass);
+        sb.update(b, |s| s.vel += p * bb.inv_mass);
+        if MEASURE && c.mass > 0.0 {
+            return dn.abs() / c.mass;
+        }
+    }
+    0.0
+}
+
+/// One velocity pass over every contact; with `measure` (the frame's last pass), the
+/// largest normal velocity change it made.
+fn velocity_pass(
+    threads: u32,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    args: (Bias, Bias, f64, bool, bool),
+    measure: bool,
+) -> Option<f64> {
+    if measure {
+        Some(in_blocks(threads, sb, buckets, |b, c| {
+            solve_contact::<true>(b, c, args)
+        }))
+    } else {
+        in_blocks(threads, sb, buckets, |b, c| {
+            solve_contact::<false>(b, c, args)
+        });
+        None
+    }
+}
+
+fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
+    let (a, b) = (c.a as usize, c.b as usize);
+    let (ia, ib) = (sb.get(a).inv_mass, sb.get(b).inv_mass);
+    sb.update(a, |s| s.vel -= impulse * ia);
+    sb.update(b, |s| s.vel += impulse * ib);
+}
+
+/// Runs `work` on every contact of every block (at once on up to `threads` threads when
+/// there are several blocks), then of the boundary; returns the largest of its results.
+///
+/// Two blocks a thread runs are interleaved, a contact of one then a contact of the
+/// other: they touch different bodies, so the processor overlaps the two instead of
+/// waiting on each contact's result for the next (consecutive contacts of one block
+/// share a body). The bits are those of one block after the other (four-way interleaving
+/// measured no faster).
+#[inline(always)]
+fn in_blocks(
+    threads: u32,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    work: impl Fn(Bodies, &mut Contact) -> f64 + Sync + Send,
+) -> f64 {
+    let bodies = Bodies::new(sb);
+    let (blocks, boundary) = buckets.split_at_mut(buckets.len() - 1);
+    let n = crate::parallel::effective(threads).min(blocks.len());
+    let run = |group: &mut [Vec<Contact>]| {
+        let mut largest = 0.0_f64;
+        for two in group.chunks_mut(2) {
+            let (x, y) = match two {
+                [x, y] => (x.as_mut_slice(), y.as_mut_slice()),
+                [x] => (x.as_mut_slice(), &mut [][..]),
+                _ => unreachable!("chunks of one or two"),
+            };
+            let common = x.len().min(y.len());
+            let (x, x_rest) = x.split_at_mut(common);
+            let (y, y_rest) = y.split_at_mut(common);
+            for (p, q) in x.iter_mut().zip(y.iter_mut()) {
+                largest = largest.max(work(bodies, p));
+                largest = largest.max(work(bodies, q));
+            }
+            for c in x_rest.iter_mut().chain(y_rest.iter_mut()) {
+                largest = largest.max(work(bodies, c));
+            }
+        }
+        largest
+    };
+    let largest = if n > 1 {
+        crate::parallel::run(threads, blocks::groups(blocks, n), run)
+            .into_iter()
+            .fold(0.0, f64::max)
+    } else {
+        run(blocks)
+    };
+    largest.max(run(boundary))
+}

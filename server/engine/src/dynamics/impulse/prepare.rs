@@ -1,0 +1,242 @@
+//! The frame's preparation: the solver's bodies (the movers first, then every other body a
+//! pair touches), the blocks cut from where the movers are, and the contacts found from
+//! the candidate pairs, each into its block's bucket (on several threads, in pair order).
+
+use glam::DVec2;
+
+use super::{
+    blocks, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, RESTITUTION_SPEED, UNSLOTTED,
+};
+use super::{MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
+use crate::dynamics::body::Body;
+use crate::geometry::separation;
+
+/// Fills `buffers` for the frame: the solver's bodies and what each mover gains per second
+/// (`gains`), the blocks, and the contacts of `pairs` (each pair's impulses taken: the solver
+/// leaves this frame's). Returns the touching contacts and the deepest penetration.
+pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
+    bodies: &[Body],
+    pairs: &mut [Pair],
+    params: ImpulseParams,
+    buffers: &mut SolverBuffers,
+    movers: &[u32],
+    gains: &G,
+) -> (u64, f64) {
+    let SolverBuffers {
+        bodies: sb,
+        slot,
+        slotted,
+        accel: gain,
+        buckets,
+        found,
+        block_of,
+        blocks_for,
+        frames_since_cut,
+        places,
+        cut_scratch,
+        pushed: _,
+    } = buffers;
+    if slot.len() < bodies.len() {
+        slot.resize(bodies.len(), UNSLOTTED);
+    }
+    sb.clear();
+    slotted.clear();
+    // A body's place among the solver's bodies, given at its first use.
+    let mut place = |i: u32, sb: &mut Vec<SolverBody>| -> u32 {
+        let s = &mut slot[i as usize];
+        if *s == UNSLOTTED {
+            let b = &bodies[i as usize];
+            *s = sb.len() as u32;
+            sb.push(SolverBody {
+                vel: b.vel,
+                pseudo: DVec2::ZERO,
+                delta: DVec2::ZERO,
+                inv_mass: b.inv_mass,
+            });
+            slotted.push(i);
+        }
+        *s
+    };
+    // The movers first: mover k is solver body k.
+    for &i in movers {
+        place(i, sb);
+    }
+    gain.clear();
+    gain.extend(movers.iter().map(|&i| gains(&bodies[i as usize])));
+
+    let moving = movers.len();
+    let block_count = blocks::block_count(moving);
+    // The blocks, cut from where the movers are (not every frame: the cut costs about
+    // as much as a tenth of a pass on the pyramid, and a pile hardly moves).
+    *frames_since_cut += 1;
+    if blocks_for.as_slice() != movers
+        || block_of.len() != moving
+        || *frames_since_cut >= blocks::RECUT_FRAMES
+    {
+        places.clear();
+        places.extend(movers.iter().map(|&i| bodies[i as usize].pos));
+        blocks::assign(places, block_count, block_of, cut_scratch);
+        blocks_for.clear();
+        blocks_for.extend_from_slice(movers);
+        *frames_since_cut = 0;
+    }
+    buckets.resize_with(block_count + 1, Vec::new);
+    buckets.truncate(block_count + 1);
+    for bucket in buckets.iter_mut() {
+        bucket.clear();
+    }
+    // Every body of a pair gets its place first (the movers have theirs), so that the
+    // contacts can then be found on several threads, each pair on its own.
+    for pair in pairs.iter() {
+        place(pair.a, sb);
+        place(pair.b, sb);
+    }
+    let find = Finder {
+        bodies,
+        slot,
+        block_of,
+        moving,
+        block_count,
+        params,
+        gains,
+    };
+    // Contiguous runs of pairs, each filling its own buckets: the first run the solver's,
+    // the others spares appended after it in order, so every bucket lists its contacts
+    // in the order of the pairs whatever the thread count.
+    let (runs, size) = crate::parallel::chunking(params.threads, pairs.len());
+    found.resize_with(runs.saturating_sub(1), Vec::new);
+    for spare in found.iter_mut() {
+        spare.resize_with(block_count + 1, Vec::new);
+        spare.truncate(block_count + 1);
+        spare.iter_mut().for_each(Vec::clear);
+    }
+    let outs = std::iter::once(&mut buckets[..]).chain(found.iter_mut().map(|f| &mut f[..]));
+    let work: Vec<_> = pairs
+        .chunks_mut(size.max(1))
+        .enumerate()
+        .zip(outs)
+        .collect();
+    let partial = crate::parallel::run(params.threads, work, |((run, pairs), out)| {
+        find.contacts(pairs, run * size, out)
+    });
+    let (mut touching, mut deepest) = (0, 0.0_f64);
+    for (contacts, deep) in partial {
+        touching += contacts;
+        deepest = deepest.max(deep);
+    }
+    for spare in found.iter_mut() {
+        for (bucket, more) in buckets.iter_mut().zip(spare.iter()) {
+            bucket.extend_from_slice(more);
+        }
+    }
+    (touching, deepest)
+}
+
+/// What finding a frame's contacts reads: the bodies, their places among the solver's
+/// bodies (all given), the blocks, the frame's settings and what each body gains per second.
+struct Finder<'a, G> {
+    bodies: &'a [Body],
+    slot: &'a [u32],
+    /// Each mover's block, by slot.
+    block_of: &'a [u16],
+    moving: usize,
+    block_count: usize,
+    params: ImpulseParams,
+    gains: &'a G,
+}
+
+impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
+    /// The contacts of `pairs` (the run starting at pair `first`), each pushed to its
+    /// bucket in `out`; each pair's impulses are taken (the solver leaves this frame's).
+    /// Returns the touching contacts and the deepest penetration among them.
+    fn contacts(&self, pairs: &mut [Pair], first: usize, out: &mut [Vec<Contact>]) -> (u64, f64) {
+        let (bodies, params, gains) = (self.bodies, self.params, self.gains);
+        let frame_dt = params.dt;
+        let (mut touching, mut deepest) = (0, 0.0_f64);
+        for (k, pair) in pairs.iter_mut().enumerate() {
+            let (i, j) = (pair.a, pair.b);
+            let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
+            let (old_n, jn, jt) = (pair.normal, pair.normal_impulse, pair.tangent_impulse);
+            pair.normal_impulse = 0.0;
+            pair.tangent_impulse = 0.0;
+            if a.inv_mass + b.inv_mass == 0.0 {
+                continue;
+            }
+            let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
+            let rel = b.vel - a.vel;
+            let size = a
+                .shape
+                .half_extents()
+                .min_element()
+                .min(b.shape.half_extents().min_element())
+                * 2.0;
+            // Too far apart to meet within the frame: no contact.
+            if gap > rel.length() * frame_dt + 0.1 * size {
+                continue;
+            }
+            if gap <= 0.0 {
+                touching += 1;
+                deepest = deepest.max(-gap);
+            }
+            // The approach speed at impact: a pair found apart closes its gap under its
+            // relative acceleration first, so it meets faster (or slower) than it was found
+            // moving (`v_i² = v² - 2 a s`, energy along the normal). Bouncing with the
+            // speed found would lose the energy gained over the gap at every bounce.
+            let approach = rel.dot(n);
+            let impact = if gap > 0.0 && approach < 0.0 {
+                let closing = approach * approach - 2.0 * (gains(b) - gains(a)).dot(n) * gap;
+                -closing.max(0.0).sqrt()
+            } else {
+                approach
+            };
+            let bounce = if impact < -RESTITUTION_SPEED {
+                -a.restitution.min(b.restitution) * impact
+            } else {
+                0.0
+            };
+            let slop = params.slop * size;
+            // Only contacts that touch, and are no impact, start from their last impulses.
+            let warm = params.warm_starting
+                && gap <= slop
+                && old_n.dot(n) > 0.99
+                && approach.abs() <= WARM_START_SPEED;
+            let (sa, sb) = (self.slot[i as usize], self.slot[j as usize]);
+            let bucket = blocks::bucket_of(
+                sa,
+                sb,
+                self.block_count,
+                // Moving: a mover (the first slots) that is not frozen for the step.
+                |s| {
+                    (s as usize) < self.moving
+                        && if s == sa {
+                            a.inv_mass != 0.0
+                        } else {
+                            b.inv_mass != 0.0
+                        }
+                },
+                |s| self.block_of[s as usize] as usize,
+            );
+            out[bucket].push(Contact {
+                a: sa,
+                b: sb,
+                normal: n,
+                mass: 1.0 / (a.inv_mass + b.inv_mass),
+                friction: (a.friction * b.friction).sqrt(),
+                gap,
+                slop,
+                bounce,
+                max_push: MAX_PUSH_OUT * size,
+                normal_impulse: if warm { jn } else { 0.0 },
+                tangent_impulse: if warm { jt } else { 0.0 },
+                pseudo_impulse: 0.0,
+                pair: (first + k) as u32,
+                // A bouncing pair closes its gap, however small, before it bounces:
+                // bouncing from short of the surface would give it the gap's height for
+                // nothing.
+                speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
+                fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
+            });
+        }
+        (touching, deepest)
+    }
+}
