@@ -24,7 +24,7 @@
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
 
-use crate::dynamics::body::GroupId;
+use crate::dynamics::body::{Body, GroupId};
 use crate::geometry::{separation, Shape};
 use crate::world::{Side, World};
 
@@ -129,18 +129,22 @@ pub struct Figures {
     pub non_finite: bool,
 }
 
-/// Watches a run: [`Monitor::observe`] after every step, then [`Monitor::verdict`].
+/// Watches a run: [`Monitor::observe`] after every step, then [`Monitor::verdict`]. It
+/// keeps its own copy of the bodies as built, so another engine's run of the same scene
+/// can be judged the same way ([`Monitor::observe_dynamic`]).
 #[derive(Clone, Debug)]
 pub struct Monitor {
     criteria: Criteria,
-    /// Each dynamic body's index, its place at the start and its size (smaller side).
-    built: Vec<(u32, DVec2, f64)>,
-    /// Each dynamic body's place after the last step (same order as `built`).
-    last: Vec<DVec2>,
+    /// Every body as built; the dynamic ones are moved to where each step left them.
+    bodies: Vec<Body>,
+    /// The dynamic bodies' indices in `bodies` (and in the world's bodies).
+    dynamic: Vec<u32>,
+    /// Each dynamic body's place at the start and its size (its smaller side).
+    built: Vec<(DVec2, f64)>,
     dt: f64,
     /// Which group pairs resolve (both orders), by group id.
     resolving: Vec<(GroupId, GroupId)>,
-    /// Each dynamic body has left `inside` (same order as `built`).
+    /// Each dynamic body has left `inside` (same order as `dynamic`).
     left: Vec<bool>,
     energy: EnergyWatch,
     /// Steps in the run's last second, from the world's step.
@@ -149,15 +153,20 @@ pub struct Monitor {
 }
 
 impl Monitor {
-    /// Starts watching `world` as it is now (before its first step).
+    /// Starts watching `world` as it is now (before its first step), for a run in which no
+    /// body is added or removed.
     pub fn new(world: &World, criteria: &Criteria) -> Monitor {
-        let built: Vec<(u32, DVec2, f64)> = world
-            .bodies()
-            .iter()
-            .enumerate()
-            .filter(|(_, b)| b.inv_mass > 0.0)
-            .map(|(i, b)| (i as u32, b.pos, b.shape.size().min_element()))
+        let bodies = world.bodies().to_vec();
+        let dynamic: Vec<u32> = (0..bodies.len() as u32)
+            .filter(|&i| bodies[i as usize].inv_mass > 0.0)
             .collect();
+        let built = dynamic
+            .iter()
+            .map(|&i| {
+                let b = &bodies[i as usize];
+                (b.pos, b.shape.size().min_element())
+            })
+            .collect::<Vec<_>>();
         let mut resolving = Vec::new();
         for inter in world.interactions() {
             if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
@@ -170,9 +179,10 @@ impl Monitor {
         Monitor {
             criteria: criteria.clone(),
             left: vec![false; built.len()],
-            last: built.iter().map(|b| b.1).collect(),
-            dt: world.config.dt,
             built,
+            bodies,
+            dynamic,
+            dt: world.config.dt,
             resolving,
             energy: EnergyWatch::new(energy),
             final_window: per_second.min(criteria.steps),
@@ -180,39 +190,60 @@ impl Monitor {
         }
     }
 
+    /// The dynamic bodies, as indices among the world's bodies: the order in which
+    /// [`Monitor::observe_dynamic`] takes their states.
+    pub fn dynamic(&self) -> &[u32] {
+        &self.dynamic
+    }
+
     /// Measures the world after a step.
     pub fn observe(&mut self, world: &World) {
         let bodies = world.bodies();
+        let states: Vec<(DVec2, DVec2)> = self
+            .dynamic
+            .iter()
+            .map(|&i| {
+                let b = &bodies[i as usize];
+                (b.pos, b.vel)
+            })
+            .collect();
+        self.observe_dynamic(&states);
+    }
+
+    /// Measures a step from the dynamic bodies' positions and velocities, in the order of
+    /// [`Monitor::dynamic`] (another engine's run of the scene is judged this way).
+    pub fn observe_dynamic(&mut self, states: &[(DVec2, DVec2)]) {
         let f = &mut self.figures;
         f.steps += 1;
         let in_final = f.steps + self.final_window > self.criteria.steps;
-        for (k, &(i, start, size)) in self.built.iter().enumerate() {
-            let b = &bodies[i as usize];
-            if !(b.pos.is_finite() && b.vel.is_finite()) {
+        let mut energy = 0.0;
+        for (k, (&(pos, vel), &i)) in states.iter().zip(&self.dynamic).enumerate() {
+            let (start, size) = self.built[k];
+            let body = &mut self.bodies[i as usize];
+            if !(pos.is_finite() && vel.is_finite()) {
                 f.non_finite = true;
                 continue;
             }
-            f.drift = f.drift.max((b.pos - start).length() / size);
-            let speed = b
-                .vel
-                .length()
-                .max((b.pos - self.last[k]).length() / self.dt);
-            self.last[k] = b.pos;
+            f.drift = f.drift.max((pos - start).length() / size);
+            let speed = vel.length().max((pos - body.pos).length() / self.dt);
+            body.pos = pos;
+            body.vel = vel;
+            energy += body.kinetic_energy();
             f.speed = f.speed.max(speed);
             if in_final {
                 f.final_speed = f.final_speed.max(speed);
             }
             if let Some([lo, hi]) = self.criteria.inside {
-                let out = b.pos.x < lo.x || b.pos.y < lo.y || b.pos.x > hi.x || b.pos.y > hi.y;
+                let out = pos.x < lo.x || pos.y < lo.y || pos.x > hi.x || pos.y > hi.y;
                 if out && !self.left[k] {
                     self.left[k] = true;
                     f.left += 1;
                 }
             }
         }
-        f.energy_rise = self.energy.see(world.kinetic_energy());
+        f.energy_rise = self.energy.see(energy);
         if self.criteria.overlap.is_some() || self.criteria.final_overlap.is_some() {
-            let deepest = deepest_overlap(world, &self.resolving);
+            let deepest = deepest_overlap(&self.bodies, &self.resolving);
             let f = &mut self.figures;
             f.overlap = f.overlap.max(deepest);
             f.final_overlap = deepest;
@@ -259,9 +290,8 @@ impl Monitor {
 /// The deepest overlap among pairs of bodies whose groups resolve against each other, in
 /// sizes of the smaller body of the pair (bodies binned in a grid of the largest
 /// dynamic body's size, so the cost is near the number of bodies).
-fn deepest_overlap(world: &World, resolving: &[(GroupId, GroupId)]) -> f64 {
+fn deepest_overlap(bodies: &[Body], resolving: &[(GroupId, GroupId)]) -> f64 {
     use std::collections::HashMap;
-    let bodies = world.bodies();
     let cell = bodies
         .iter()
         .filter(|b| b.inv_mass > 0.0)
@@ -388,7 +418,7 @@ mod tests {
             (DVec2::new(50.0, 0.0), DVec2::ZERO, 0.0),
         ]);
         let m = Monitor::new(&w, &Criteria::for_test());
-        let d = deepest_overlap(&w, &m.resolving);
+        let d = deepest_overlap(w.bodies(), &m.resolving);
         assert!((d - 0.25).abs() < 1e-12, "{d}");
     }
 
@@ -417,6 +447,34 @@ mod tests {
         assert!(!get("speed").pass);
         assert!(get("drift").pass, "{:?}", get("drift"));
         assert!(!m.holds());
+    }
+
+    #[test]
+    fn another_engines_states_are_judged_as_the_worlds() {
+        let mut w = world(&[
+            (DVec2::ZERO, DVec2::new(3.0, 0.0), 1.0),
+            (DVec2::new(5.0, 0.0), DVec2::ZERO, 0.0),
+            (DVec2::new(0.0, 5.0), DVec2::new(0.0, -1.0), 2.0),
+        ]);
+        let criteria = Criteria {
+            speed: Some(10.0),
+            drift: Some(1.0),
+            ..Criteria::for_test()
+        };
+        let (mut mine, mut theirs) = (Monitor::new(&w, &criteria), Monitor::new(&w, &criteria));
+        assert_eq!(mine.dynamic(), &[0, 2]);
+        for _ in 0..60 {
+            w.step();
+            mine.observe(&w);
+            let states: Vec<(DVec2, DVec2)> = theirs
+                .dynamic()
+                .iter()
+                .map(|&i| (w.bodies()[i as usize].pos, w.bodies()[i as usize].vel))
+                .collect();
+            theirs.observe_dynamic(&states);
+        }
+        assert_eq!(mine.figures(), theirs.figures());
+        assert!(mine.figures().drift > 0.5, "{:?}", mine.figures());
     }
 
     #[test]
