@@ -288,8 +288,10 @@ mod tests {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/pyramid-10.toml");
         let text = std::fs::read_to_string(&path).unwrap();
         let cache = tempfile::tempdir().unwrap();
+        // A cold pile (no resting load): how far it sags depends on the passes.
+        let cold = ["rest_load=false".to_string()];
         let pick = |t| {
-            for_scene(&path, &text, &[], Some(t), Some(cache.path()))
+            for_scene(&path, &text, &cold, Some(t), Some(cache.path()))
                 .unwrap()
                 .unwrap()
         };
@@ -327,14 +329,14 @@ mod tests {
         assert!(!theirs.from_cache);
         // The scene's own `[world] accuracy` is a target too; the flag overrides it.
         let declared = text.replacen("[world]", "[world]\naccuracy = 0.01", 1);
-        let own = for_scene(&path, &declared, &[], None, Some(cache.path()))
+        let own = for_scene(&path, &declared, &cold, None, Some(cache.path()))
             .unwrap()
             .unwrap();
         assert_eq!(
             (own.target, &own.candidate.overrides),
             (1e-2, &loose.candidate.overrides)
         );
-        let flag = for_scene(&path, &declared, &[], Some(1e-3), Some(cache.path()))
+        let flag = for_scene(&path, &declared, &cold, Some(1e-3), Some(cache.path()))
             .unwrap()
             .unwrap();
         assert_eq!(flag.candidate.overrides, tight.candidate.overrides);

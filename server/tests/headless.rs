@@ -250,7 +250,7 @@ fn bench_measures_shipped_scenes_and_writes_its_csv_and_table() {
     assert_eq!(rows.len(), 4, "{csv}");
     for (row, start) in rows[1..].iter().zip([
         "bench/platforms-10,shipped,,11,0,600,",
-        "bench/platforms-10,relaxation,solver=relaxation,11,0,600,",
+        "bench/platforms-10,relaxation,solver=relaxation,11,0,20,",
         "bench/platforms-10,\"impulses, sweep\",broad_phase=sweep,11,0,600,",
     ]) {
         assert!(row.starts_with(start), "{csv}");

@@ -1,0 +1,84 @@
+//! The engines of the benchmark behind one face: build a scene fresh, step it, and show
+//! the criteria monitor where its dynamic bodies are. Ricochet itself lives here; the
+//! peers in `box2d.rs` and `rapier.rs`.
+
+use anyhow::Result;
+use glam::DVec2;
+use ricochet_engine::criteria::Monitor;
+use ricochet_engine::world::World;
+
+use crate::scene::Scene;
+
+/// The three engines, in the order of the first round.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EngineKind {
+    Ricochet,
+    Box2d,
+    Rapier,
+}
+
+impl EngineKind {
+    pub const ALL: [EngineKind; 3] = [EngineKind::Ricochet, EngineKind::Box2d, EngineKind::Rapier];
+
+    /// The name the tables use.
+    pub fn name(self) -> &'static str {
+        match self {
+            EngineKind::Ricochet => "Ricochet",
+            EngineKind::Box2d => "Box2D v3",
+            EngineKind::Rapier => "rapier2d",
+        }
+    }
+
+    /// The scene built in this engine, before its first step.
+    pub fn build(self, scene: &Scene) -> Result<Box<dyn Engine>> {
+        Ok(match self {
+            EngineKind::Ricochet => Box::new(Ricochet {
+                world: scene.fresh_world()?,
+            }),
+            EngineKind::Box2d => Box::new(crate::box2d::Box2dScene::build(scene)?),
+            EngineKind::Rapier => Box::new(crate::rapier::RapierScene::build(scene)),
+        })
+    }
+}
+
+/// A scene built in one engine.
+pub trait Engine {
+    /// One step of the scene's `dt`.
+    fn step(&mut self) -> Result<()>;
+    /// Shows `monitor` where the dynamic bodies are after a step.
+    fn observe(&mut self, monitor: &mut Monitor) -> Result<()>;
+}
+
+/// Ricochet under its default, as the scene file builds it.
+struct Ricochet {
+    world: World,
+}
+
+impl Engine for Ricochet {
+    fn step(&mut self) -> Result<()> {
+        self.world.step();
+        Ok(())
+    }
+
+    fn observe(&mut self, monitor: &mut Monitor) -> Result<()> {
+        monitor.observe(&self.world);
+        Ok(())
+    }
+}
+
+/// Fills `states` with (position, velocity) of each dynamic body in the monitor's order,
+/// read through `read` from the peer's handle of that body.
+pub fn dynamic_states<H: Copy>(
+    monitor: &Monitor,
+    handles: &[Option<H>],
+    states: &mut Vec<(DVec2, DVec2)>,
+    mut read: impl FnMut(H) -> Result<(DVec2, DVec2)>,
+) -> Result<()> {
+    states.clear();
+    for &i in monitor.dynamic() {
+        let handle = handles[i as usize]
+            .ok_or_else(|| anyhow::anyhow!("dynamic body {i} has no peer body"))?;
+        states.push(read(handle)?);
+    }
+    Ok(())
+}
