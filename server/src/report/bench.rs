@@ -319,11 +319,7 @@ pub fn measure(
 
 /// The rows as CSV.
 pub fn to_csv(rows: &[Row]) -> Result<String> {
-    let mut out = csv::Writer::from_writer(Vec::new());
-    for r in rows {
-        out.serialize(r)?;
-    }
-    Ok(String::from_utf8(out.into_inner()?)?)
+    super::to_csv(rows)
 }
 
 /// The rows as a Markdown table.

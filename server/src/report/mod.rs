@@ -20,6 +20,15 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
+/// `rows` as CSV, a header of their field names then a line each.
+pub fn to_csv<T: serde::Serialize>(rows: &[T]) -> Result<String> {
+    let mut out = csv::Writer::from_writer(Vec::new());
+    for r in rows {
+        out.serialize(r)?;
+    }
+    Ok(String::from_utf8(out.into_inner()?)?)
+}
+
 /// The `p` quantile (0 to 1) of `sorted` values, the nearest rank; NaN when empty.
 pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {

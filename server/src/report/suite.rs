@@ -206,11 +206,7 @@ pub fn write(dir: &Path, rows: &[Row], command: &str) -> Result<()> {
 
 /// The rows as CSV.
 pub fn to_csv(rows: &[Row]) -> Result<String> {
-    let mut out = csv::Writer::from_writer(Vec::new());
-    for r in rows {
-        out.serialize(r)?;
-    }
-    Ok(String::from_utf8(out.into_inner()?)?)
+    super::to_csv(rows)
 }
 
 /// Two Markdown tables: every scene under the first setting (time and each criterion),
