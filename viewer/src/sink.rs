@@ -145,8 +145,11 @@ impl WorldSink {
         let dt = self.info.as_ref().map_or(1.0 / 60.0, |i| i.dt);
         let (frame, time, restarted) = self.timeline.map(frame, time, dt);
         if restarted {
-            // Chunks of one run only: the batcher would otherwise mix the two.
-            self.rec.flush_blocking()?;
+            // Chunks of one run only: the batcher would otherwise mix the two. The flush is
+            // started, not waited for: waiting on a sink whose reader is slow (a software-
+            // rendered web page) held the whole viewer at the first frame of a loaded scene
+            // (the browser test's "the particles went with the old scene").
+            self.rec.flush_async()?;
         }
         self.rec.set_time_sequence("frame", frame as i64);
         self.rec.set_duration_secs("sim_time", time);
