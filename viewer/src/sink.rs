@@ -146,9 +146,8 @@ impl WorldSink {
         let (frame, time, restarted) = self.timeline.map(frame, time, dt);
         if restarted {
             // Chunks of one run only: the batcher would otherwise mix the two. The flush is
-            // started, not waited for: waiting on a sink whose reader is slow (a software-
-            // rendered web page) held the whole viewer at the first frame of a loaded scene
-            // (the browser test's "the particles went with the old scene").
+            // started, not waited for: a blocking flush waits without bound on a sink whose
+            // reader is slow (a software-rendered web page), and the viewer's loop with it.
             self.rec.flush_async()?;
         }
         self.rec.set_time_sequence("frame", frame as i64);
