@@ -15,9 +15,9 @@ if (!url) {
   process.exit(2);
 }
 const watchdog = setTimeout(() => {
-  console.error('screenshot.mjs: gave up after 300 s');
+  console.error('screenshot.mjs: gave up after 600 s');
   process.exit(3);
-}, 300000);
+}, 600000);
 
 const browser = await chromium.launch({
   executablePath: process.env.CHROMIUM ?? '/usr/bin/chromium',
