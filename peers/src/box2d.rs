@@ -12,7 +12,7 @@ use glam::DVec2;
 use ricochet_engine::criteria::Monitor;
 use ricochet_engine::geometry::Shape;
 
-use crate::engine::{dynamic_states, Engine};
+use crate::engine::{observe_dynamic, Engine};
 use crate::scene::Scene;
 
 /// Sub-steps of Box2D's soft step per step.
@@ -144,18 +144,10 @@ impl Engine for Box2dScene {
 
     fn observe(&mut self, monitor: &mut Monitor) -> Result<()> {
         let world = &mut self.world;
-        let mut states = std::mem::take(&mut self.states);
-        dynamic_states(monitor, &self.bodies, &mut states, |id| {
+        observe_dynamic(monitor, &self.bodies, &mut self.states, |id| {
             let body = world.body(id)?;
-            let p = body.position()?;
-            let v = body.linear_velocity()?;
-            Ok((
-                DVec2::new(p.x as f64, p.y as f64),
-                DVec2::new(v.x as f64, v.y as f64),
-            ))
-        })?;
-        monitor.observe_dynamic(&states);
-        self.states = states;
-        Ok(())
+            let (p, v) = (body.position()?, body.linear_velocity()?);
+            Ok(([p.x as f64, p.y as f64], [v.x as f64, v.y as f64]))
+        })
     }
 }

@@ -66,19 +66,22 @@ impl Engine for Ricochet {
     }
 }
 
-/// Fills `states` with (position, velocity) of each dynamic body in the monitor's order,
-/// read through `read` from the peer's handle of that body.
-pub fn dynamic_states<H: Copy>(
-    monitor: &Monitor,
+/// Observes a peer's step: `states` (a buffer kept between calls) gets the position and
+/// velocity of each dynamic body in the monitor's order, read through `read` from the
+/// peer's handle of that body, as (x, y) pairs; the monitor then observes them.
+pub fn observe_dynamic<H: Copy>(
+    monitor: &mut Monitor,
     handles: &[Option<H>],
     states: &mut Vec<(DVec2, DVec2)>,
-    mut read: impl FnMut(H) -> Result<(DVec2, DVec2)>,
+    mut read: impl FnMut(H) -> Result<([f64; 2], [f64; 2])>,
 ) -> Result<()> {
     states.clear();
     for &i in monitor.dynamic() {
         let handle = handles[i as usize]
             .ok_or_else(|| anyhow::anyhow!("dynamic body {i} has no peer body"))?;
-        states.push(read(handle)?);
+        let (p, v) = read(handle)?;
+        states.push((DVec2::from(p), DVec2::from(v)));
     }
+    monitor.observe_dynamic(states);
     Ok(())
 }

@@ -13,7 +13,7 @@ use rapier2d::prelude::{
 use ricochet_engine::criteria::Monitor;
 use ricochet_engine::geometry::Shape;
 
-use crate::engine::{dynamic_states, Engine};
+use crate::engine::{observe_dynamic, Engine};
 use crate::scene::Scene;
 
 /// rapier's solver iterations per step.
@@ -91,17 +91,9 @@ impl Engine for RapierScene {
 
     fn observe(&mut self, monitor: &mut Monitor) -> Result<()> {
         let bodies = &self.world.bodies;
-        let mut states = std::mem::take(&mut self.states);
-        dynamic_states(monitor, &self.bodies, &mut states, |h| {
-            let b = &bodies[h];
-            let (p, v) = (b.translation(), b.linvel());
-            Ok((
-                DVec2::new(p.x as f64, p.y as f64),
-                DVec2::new(v.x as f64, v.y as f64),
-            ))
-        })?;
-        monitor.observe_dynamic(&states);
-        self.states = states;
-        Ok(())
+        observe_dynamic(monitor, &self.bodies, &mut self.states, |h| {
+            let (p, v) = (bodies[h].translation(), bodies[h].linvel());
+            Ok(([p.x as f64, p.y as f64], [v.x as f64, v.y as f64]))
+        })
     }
 }
