@@ -12,15 +12,7 @@ use serde::{Deserialize, Serialize};
 use crate::dynamics::config::ConfigError;
 use crate::dynamics::setting::Setting;
 
-/// A direction of the hero's controls (the chapter's WASD keys).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Direction {
-    Up,
-    Down,
-    Left,
-    Right,
-}
+pub use crate::behavior::Direction;
 
 /// A point `[x, y]` in world units.
 pub type Point = [f64; 2];

@@ -5,8 +5,17 @@
 //! so a scene that changes `dt` keeps the same motion in time.
 
 use glam::DVec2;
+use serde::{Deserialize, Serialize};
 
-pub use crate::action::Direction;
+/// A direction of the hero's controls (the chapter's WASD keys).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Direction {
+    Up,
+    Down,
+    Left,
+    Right,
+}
 
 /// Which directions are held: a held key is a state, not a packet per frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

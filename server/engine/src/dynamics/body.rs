@@ -3,7 +3,6 @@
 
 use glam::DVec2;
 
-use crate::behavior::Behavior;
 use crate::geometry::Shape;
 
 /// Index of a group of bodies (see [`crate::world::World::group`]).
@@ -30,7 +29,6 @@ pub struct BodyDef {
     pub friction: f64,
     /// Overrides the world's gravity for this body (the chapter's per-shape acceleration).
     pub gravity: Option<DVec2>,
-    pub behavior: Behavior,
 }
 
 impl Default for BodyDef {
@@ -45,7 +43,6 @@ impl Default for BodyDef {
             restitution: 0.8,
             friction: 0.3,
             gravity: None,
-            behavior: Behavior::None,
         }
     }
 }

@@ -170,9 +170,9 @@ pub fn parse_with(
             restitution: raw.restitution,
             friction: raw.friction,
             gravity: raw.gravity.map(DVec2::from),
-            behavior: behavior_of(raw.behavior, DVec2::from(raw.vel)),
         };
-        add(&mut world, def, &ctx, &table, span)?;
+        let behavior = behavior_of(raw.behavior, DVec2::from(raw.vel));
+        add(&mut world, def, behavior, &ctx, &table, span)?;
     }
 
     for (i, raw) in scene.generate.iter().enumerate() {
@@ -194,9 +194,9 @@ pub fn parse_with(
                 restitution: g.restitution,
                 friction: g.friction,
                 gravity: g.gravity.map(DVec2::from),
-                behavior: behavior_of(g.behavior, DVec2::from(g.vel)),
             };
-            add(&mut world, def, &ctx, &table, span.clone())?;
+            let behavior = behavior_of(g.behavior, DVec2::from(g.vel));
+            add(&mut world, def, behavior, &ctx, &table, span.clone())?;
         }
     }
 
@@ -309,12 +309,13 @@ fn read_limits(
 fn add(
     world: &mut World,
     def: BodyDef,
+    behavior: Behavior,
     ctx: &Ctx,
     table: &str,
     span: std::ops::Range<usize>,
 ) -> Result<(), SceneError> {
     let id = def.id.clone();
-    world.add_body(def).map(|_| ()).map_err(|e| match e {
+    world.add_actor(def, behavior).map(|_| ()).map_err(|e| match e {
         crate::world::WorldError::Body { source, .. } => ctx.field_error(
             table,
             span,

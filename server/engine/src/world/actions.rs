@@ -158,11 +158,10 @@ impl World {
                     pos: at,
                     mass: behavior::DYE_PACK_MASS,
                     gravity: Some(DVec2::ZERO),
-                    behavior: Behavior::DyePack {
-                        heading: DVec2::Y,
-                        life: behavior::DYE_PACK_LIFE,
-                    },
                     ..BodyDef::default()
+                }, Behavior::DyePack {
+                    heading: DVec2::Y,
+                    life: behavior::DYE_PACK_LIFE,
                 })
             }
             Action::SpawnMinion { at, shape } => {
@@ -184,11 +183,10 @@ impl World {
                     mass: behavior::MINION_MASS,
                     friction: 0.0,
                     gravity: Some(DVec2::ZERO),
-                    behavior: Behavior::Patrol {
-                        speed: behavior::MINION_SPEED,
-                        dir,
-                    },
                     ..BodyDef::default()
+                }, Behavior::Patrol {
+                    speed: behavior::MINION_SPEED,
+                    dir,
                 })
             }
             Action::SpawnDumbMinion { at } => {
@@ -204,9 +202,8 @@ impl World {
                     group: "dumb_minions".into(),
                     shape,
                     pos: at,
-                    behavior: Behavior::DumbMinion,
                     ..BodyDef::default()
-                })
+                }, Behavior::DumbMinion)
             }
             Action::Select { at, group } => {
                 let at = point("at", *at)?;
@@ -313,9 +310,13 @@ impl World {
         }
     }
 
-    pub(super) fn spawn(&mut self, def: BodyDef) -> Result<ActionOutcome, ActionError> {
+    pub(super) fn spawn(
+        &mut self,
+        def: BodyDef,
+        behavior: Behavior,
+    ) -> Result<ActionOutcome, ActionError> {
         let id = def.id.clone();
-        self.add_body(def).map_err(|e| ActionError::BadArgument {
+        self.add_actor(def, behavior).map_err(|e| ActionError::BadArgument {
             field: "at",
             reason: e.to_string(),
         })?;

@@ -91,8 +91,15 @@ impl World {
         Ok(())
     }
 
-    /// Adds a body. Its id must be unique; every number is checked.
+    /// Adds a body driven by physics alone. Its id must be unique; every number is
+    /// checked.
     pub fn add_body(&mut self, def: BodyDef) -> Result<BodyKey, WorldError> {
+        self.add_actor(def, Behavior::None)
+    }
+
+    /// Adds a body that `behavior` also drives (the chapter demo's hero, minions and dye
+    /// packs), as [`World::add_body`] checks it.
+    pub fn add_actor(&mut self, def: BodyDef, behavior: Behavior) -> Result<BodyKey, WorldError> {
         def.validate().map_err(|source| WorldError::Body {
             id: def.id.clone(),
             source,
@@ -129,12 +136,12 @@ impl World {
         if !self.bodies[index as usize].is_static() {
             self.movers.push(index);
         }
-        if def.behavior != Behavior::None {
+        if behavior != Behavior::None {
             self.behaving.push(index);
         }
         self.infos.push(BodyInfo {
             id: def.id,
-            behavior: def.behavior,
+            behavior,
         });
         Ok(key)
     }
