@@ -1,6 +1,10 @@
-//! Candidate pairs of an interaction from the configured broad phase: the grid's
+//! The broad phase, the step's one stage that finds candidate pairs: the grid's
 //! persistent pairs, a large all-static group's cached grid, or sweep and prune, always in
-//! all-pairs order so every broad phase gives the same result.
+//! all-pairs order so every broad phase gives the same result. [`World::broad_phase`]
+//! finds the pairs of every resolving interaction at once, for the impulse solver and
+//! for sleeping; the chapter's relaxation asks interaction by interaction
+//! ([`World::candidates`]), because each interaction moves bodies before the next one's
+//! pairs are found.
 
 use crate::dynamics::body::GroupId;
 use crate::dynamics::broad_phase::{
@@ -10,6 +14,50 @@ use crate::dynamics::broad_phase::{
 use super::{Side, World};
 
 impl World {
+    /// Finds the candidate pairs of every resolving interaction between groups for a step
+    /// of `dt` from where the bodies are now: with the grid, its persistent pairs brought
+    /// up to date ([`World::found_pairs`] reads them); otherwise each interaction's pairs
+    /// in declaration order, into `self.pairs` (every pair of the two groups under
+    /// `all_pairs`).
+    pub(super) fn broad_phase(&mut self, dt: f64) {
+        let mut all = std::mem::take(&mut self.pairs);
+        all.clear();
+        if self.config.broad_phase == BroadPhase::Grid {
+            self.update_pair_set(dt);
+            self.pairs = all;
+            return;
+        }
+        let mut some = std::mem::take(&mut self.sweep_out);
+        for (a, b) in self.resolving() {
+            let (ga, gb) = (
+                &self.groups[a as usize].members,
+                &self.groups[b as usize].members,
+            );
+            if ga.is_empty() || gb.is_empty() {
+                continue;
+            }
+            if self.config.broad_phase == BroadPhase::AllPairs {
+                for &i in ga {
+                    all.extend(gb.iter().filter(|&&j| j != i).map(|&j| (i, j)));
+                }
+            } else {
+                self.candidates(a, b, dt, &mut some);
+                all.extend_from_slice(&some);
+            }
+        }
+        self.sweep_out = some;
+        self.pairs = all;
+    }
+
+    /// The pairs the last [`World::broad_phase`] found.
+    pub(super) fn found_pairs(&self) -> Box<dyn Iterator<Item = (u32, u32)> + '_> {
+        if self.config.broad_phase == BroadPhase::Grid {
+            Box::new(self.pair_set.pairs.iter().map(|p| (p.a, p.b)))
+        } else {
+            Box::new(self.pairs.iter().copied())
+        }
+    }
+
     /// Candidate pairs of the interaction between groups `a` and `b`, in all-pairs order:
     /// from the grid broad phase's kept pairs; or, with the sweep, against a large
     /// all-static group from its cached grid, otherwise by sweep and prune.

@@ -131,15 +131,9 @@ impl World {
     /// Joins touching bodies into islands and puts resting islands to sleep.
     pub(super) fn update_sleep(&mut self) {
         let dt = self.config.dt;
-        let mut pairs = Vec::new();
-        let mut some = Vec::new();
-        for k in 0..self.interactions.len() {
-            let inter = self.interactions[k];
-            if let (Side::Group(a), Side::Group(b), true) = (inter.a, inter.b, inter.resolve) {
-                self.candidates(a, b, dt, &mut some);
-                pairs.extend_from_slice(&some);
-            }
-        }
+        // Where the bodies are after the step: islands join bodies touching now.
+        self.broad_phase(dt);
+        let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
         let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
         let infos = &self.infos;
         let may_sleep =
@@ -295,40 +289,22 @@ impl World {
     /// One frame of the impulse solver (all its sub-steps) over the contacts of every rigid
     /// interaction.
     pub(super) fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
-        let mut all = std::mem::take(&mut self.pairs);
-        let mut some = std::mem::take(&mut self.sweep_out);
-        all.clear();
         for k in 0..self.interactions.len() {
             let inter = self.interactions[k];
-            let (Side::Group(a), Side::Group(b)) = (inter.a, inter.b) else {
+            let (Side::Group(a), Side::Group(b), false) = (inter.a, inter.b, inter.resolve) else {
                 continue;
             };
             let (ga, gb) = (
                 &self.groups[a as usize].members,
                 &self.groups[b as usize].members,
             );
-            if ga.is_empty() || gb.is_empty() {
-                continue;
-            }
-            if !inter.resolve {
+            if !ga.is_empty() && !gb.is_empty() {
                 let report = relaxation::detect_only(&mut self.bodies, ga, gb);
                 stats.contacts += report.contacts;
-                continue;
-            }
-            match self.config.broad_phase {
-                BroadPhase::AllPairs => {
-                    for &i in ga {
-                        all.extend(gb.iter().filter(|&&j| j != i).map(|&j| (i, j)));
-                    }
-                }
-                BroadPhase::Sweep => {
-                    self.candidates(a, b, h, &mut some);
-                    all.extend_from_slice(&some);
-                }
-                BroadPhase::Grid => {}
             }
         }
-        self.sweep_out = some;
+        self.broad_phase(h);
+        let mut all = std::mem::take(&mut self.pairs);
         let config = &self.config;
         let params = ImpulseParams {
             iterations: config.impulse_iterations_at(self.frame),
@@ -349,7 +325,6 @@ impl World {
         };
         let grid = config.broad_phase == BroadPhase::Grid;
         let mut pairs = if grid {
-            self.update_pair_set(h);
             std::mem::take(&mut self.pair_set.pairs)
         } else {
             let mut pairs = std::mem::take(&mut self.solver_pairs);
