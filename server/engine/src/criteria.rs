@@ -65,6 +65,22 @@ fn default_steps() -> u64 {
     600
 }
 
+/// No criterion stated, over the default run.
+impl Default for Criteria {
+    fn default() -> Self {
+        Criteria {
+            steps: default_steps(),
+            inside: None,
+            drift: None,
+            overlap: None,
+            final_overlap: None,
+            speed: None,
+            final_speed: None,
+            energy_rise: None,
+        }
+    }
+}
+
 /// The longest run a scene's criteria may ask for.
 pub const MAX_STEPS: u64 = 1_000_000;
 
@@ -112,7 +128,8 @@ pub struct Judgement {
 }
 
 /// The worst figures of a run so far, measured after every step whatever the criteria
-/// ask (a report shows them all).
+/// ask (a report shows them all), but for the overlaps: over the run only where
+/// `overlap` is stated, at the end only where just `final_overlap` is.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Figures {
     /// Steps observed.
@@ -242,7 +259,10 @@ impl Monitor {
             }
         }
         f.energy_rise = self.energy.see(energy);
-        if self.criteria.overlap.is_some() || self.criteria.final_overlap.is_some() {
+        // The overlap costs a pass over the bodies: every step where it is judged over the
+        // run, from the last stated step on where only its end is.
+        let at_end = self.figures.steps >= self.criteria.steps;
+        if self.criteria.overlap.is_some() || (self.criteria.final_overlap.is_some() && at_end) {
             let deepest = deepest_overlap(&self.bodies, &self.resolving);
             let f = &mut self.figures;
             f.overlap = f.overlap.max(deepest);

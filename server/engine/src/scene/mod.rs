@@ -315,15 +315,18 @@ fn add(
     span: std::ops::Range<usize>,
 ) -> Result<(), SceneError> {
     let id = def.id.clone();
-    world.add_actor(def, behavior).map(|_| ()).map_err(|e| match e {
-        crate::world::WorldError::Body { source, .. } => ctx.field_error(
-            table,
-            span,
-            source.field,
-            &format!("body `{id}`: {}", source.reason),
-        ),
-        other => ctx.field_error(table, span, "id", &other.to_string()),
-    })
+    world
+        .add_actor(def, behavior)
+        .map(|_| ())
+        .map_err(|e| match e {
+            crate::world::WorldError::Body { source, .. } => ctx.field_error(
+                table,
+                span,
+                source.field,
+                &format!("body `{id}`: {}", source.reason),
+            ),
+            other => ctx.field_error(table, span, "id", &other.to_string()),
+        })
 }
 
 fn shape_of(

@@ -151,18 +151,21 @@ impl World {
             Action::FireDyePack { at } => {
                 let at = point("at", *at)?;
                 let id = self.fresh_id("dye_pack");
-                self.spawn(BodyDef {
-                    id: id.clone(),
-                    group: "dye_packs".into(),
-                    shape: Shape::circle(behavior::DYE_PACK_RADIUS),
-                    pos: at,
-                    mass: behavior::DYE_PACK_MASS,
-                    gravity: Some(DVec2::ZERO),
-                    ..BodyDef::default()
-                }, Behavior::DyePack {
-                    heading: DVec2::Y,
-                    life: behavior::DYE_PACK_LIFE,
-                })
+                self.spawn(
+                    BodyDef {
+                        id: id.clone(),
+                        group: "dye_packs".into(),
+                        shape: Shape::circle(behavior::DYE_PACK_RADIUS),
+                        pos: at,
+                        mass: behavior::DYE_PACK_MASS,
+                        gravity: Some(DVec2::ZERO),
+                        ..BodyDef::default()
+                    },
+                    Behavior::DyePack {
+                        heading: DVec2::Y,
+                        life: behavior::DYE_PACK_LIFE,
+                    },
+                )
             }
             Action::SpawnMinion { at, shape } => {
                 let at = point("at", *at)?;
@@ -174,20 +177,23 @@ impl World {
                 };
                 let dir = if self.rng.random::<bool>() { 1.0 } else { -1.0 };
                 let id = self.fresh_id("minion");
-                self.spawn(BodyDef {
-                    id,
-                    group: "minions".into(),
-                    shape,
-                    pos: at,
-                    vel: DVec2::new(dir * behavior::MINION_SPEED, 0.0),
-                    mass: behavior::MINION_MASS,
-                    friction: 0.0,
-                    gravity: Some(DVec2::ZERO),
-                    ..BodyDef::default()
-                }, Behavior::Patrol {
-                    speed: behavior::MINION_SPEED,
-                    dir,
-                })
+                self.spawn(
+                    BodyDef {
+                        id,
+                        group: "minions".into(),
+                        shape,
+                        pos: at,
+                        vel: DVec2::new(dir * behavior::MINION_SPEED, 0.0),
+                        mass: behavior::MINION_MASS,
+                        friction: 0.0,
+                        gravity: Some(DVec2::ZERO),
+                        ..BodyDef::default()
+                    },
+                    Behavior::Patrol {
+                        speed: behavior::MINION_SPEED,
+                        dir,
+                    },
+                )
             }
             Action::SpawnDumbMinion { at } => {
                 let at = point("at", *at)?;
@@ -197,13 +203,16 @@ impl World {
                     Shape::rect(behavior::MINION_RECT.x, behavior::MINION_RECT.y)
                 };
                 let id = self.fresh_id("dumb_minion");
-                self.spawn(BodyDef {
-                    id,
-                    group: "dumb_minions".into(),
-                    shape,
-                    pos: at,
-                    ..BodyDef::default()
-                }, Behavior::DumbMinion)
+                self.spawn(
+                    BodyDef {
+                        id,
+                        group: "dumb_minions".into(),
+                        shape,
+                        pos: at,
+                        ..BodyDef::default()
+                    },
+                    Behavior::DumbMinion,
+                )
             }
             Action::Select { at, group } => {
                 let at = point("at", *at)?;
@@ -316,10 +325,11 @@ impl World {
         behavior: Behavior,
     ) -> Result<ActionOutcome, ActionError> {
         let id = def.id.clone();
-        self.add_actor(def, behavior).map_err(|e| ActionError::BadArgument {
-            field: "at",
-            reason: e.to_string(),
-        })?;
+        self.add_actor(def, behavior)
+            .map_err(|e| ActionError::BadArgument {
+                field: "at",
+                reason: e.to_string(),
+            })?;
         Ok(ActionOutcome { ids: vec![id] })
     }
 

@@ -111,14 +111,21 @@ fn main() -> Result<()> {
                     .expect("a valid template"),
             );
             let rows = report::suite::run_all(&scenes, only.as_deref(), &progress)?;
+            let targeted = report::suite::run_targeted(
+                &scenes,
+                only.as_deref(),
+                report::suite::TARGET,
+                &progress,
+            )?;
             progress.finish_and_clear();
             println!("{}", report::suite::to_markdown(&rows));
+            println!("{}", report::suite::targeted_markdown(&targeted));
             if let Some(dir) = out {
                 let command = std::iter::once("ricochet-server".to_string())
                     .chain(std::env::args().skip(1))
                     .collect::<Vec<_>>()
                     .join(" ");
-                report::suite::write(&dir, &rows, &command)?;
+                report::suite::write(&dir, &rows, &targeted, &command)?;
                 eprintln!(
                     "wrote {} and the tables of its README.md",
                     dir.join("suite.csv").display()
@@ -334,6 +341,7 @@ fn scene_tradeoff(out: PathBuf, args: SceneTradeoffArgs) -> Result<()> {
         tolerance: args.tolerance,
         max_refinements: args.max_refinements,
         reference_budget: args.reference_budget,
+        budget: None,
     };
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut pages = Vec::new();

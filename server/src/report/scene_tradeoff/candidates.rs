@@ -77,12 +77,32 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
         }
         return out;
     }
+    // The default's family first, cheapest to finest: the impulse solver with split
+    // impulses and the resting load, at more sub-steps (mass ratios, fast bodies) and more
+    // passes (tall piles). Every field that makes it the default is named, so a scene that
+    // names the chapter's relaxation gets the same setting.
+    for (substeps, passes) in [(1, 2), (2, 2), (2, 4), (4, 4), (8, 4), (8, 8)] {
+        out.push(impulse_ladder(substeps, passes));
+    }
+    out.push(c(
+        "soft 1 pass + 1 relax, 4 sub-steps",
+        &[
+            "solver=impulses",
+            "broad_phase=grid",
+            "impulse_iterations=1",
+            "relax_iterations=1",
+            "substeps=4",
+            "contact_hertz=30",
+            "split_impulses=false",
+        ],
+    ));
     let relaxation = |n: u32| format!("relaxation_iterations={n}");
-    for n in [5, 15, 50] {
+    for n in [15, 50] {
         out.push(Candidate {
             name: format!("relaxation {n}"),
             overrides: vec![
                 "solver=relaxation".into(),
+                "broad_phase=sweep".into(),
                 relaxation(n),
                 "substeps=1".into(),
             ],
@@ -92,82 +112,70 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
         "relaxation 15, 4 sub-steps",
         &[
             "solver=relaxation",
+            "broad_phase=sweep",
             "relaxation_iterations=15",
             "substeps=4",
         ],
     ));
     out.push(c(
-        "relaxation 15, exact flight",
+        "impulses 8 passes, cold, 1 sub-step",
         &[
-            "solver=relaxation",
-            "relaxation_iterations=15",
+            "solver=impulses",
+            "broad_phase=grid",
+            "impulse_iterations=8",
             "substeps=1",
-            "integrator=exact",
+            "split_impulses=false",
+            "rest_load=false",
         ],
     ));
-    for n in [4, 8, 16] {
-        out.push(Candidate {
-            name: format!("impulses {n} it"),
-            overrides: vec![
-                "solver=impulses".into(),
-                format!("impulse_iterations={n}"),
-                "substeps=1".into(),
-            ],
-        });
-    }
-    let impulses8 = ["solver=impulses", "impulse_iterations=8"];
     let with = |extra: &[&str]| -> Vec<String> {
-        impulses8
-            .iter()
-            .chain(extra)
-            .map(|s| s.to_string())
+        impulse_ladder(2, 2)
+            .overrides
+            .into_iter()
+            .chain(extra.iter().map(|s| s.to_string()))
             .collect()
     };
-    for (name, extra) in [
-        ("impulses 8 it, 2 sub-steps", &["substeps=2"][..]),
-        ("impulses 8 it, 4 sub-steps", &["substeps=4"]),
-        (
-            "impulses 8 it, split",
-            &["substeps=1", "split_impulses=true"],
-        ),
-        (
-            "impulses 8 it, exact flight",
-            &["substeps=1", "integrator=exact"],
-        ),
-        (
-            "impulses 8 it, no warm start",
-            &["substeps=1", "warm_starting=false"],
-        ),
-        (
-            "soft 1 it + 1 relax, 4 sub-steps",
-            &[
-                "impulse_iterations=1",
-                "relax_iterations=1",
-                "substeps=4",
-                "contact_hertz=30",
-            ],
-        ),
-    ] {
-        out.push(Candidate {
-            name: name.into(),
-            overrides: with(extra),
-        });
-    }
+    out.push(Candidate {
+        name: "impulses 2 x 2, exact flight".into(),
+        overrides: with(&["integrator=exact"]),
+    });
     if f.fast {
         out.push(Candidate {
-            name: "impulses 8 it, continuous collision".into(),
-            overrides: with(&["substeps=1", "ccd=true"]),
+            name: "impulses 2 x 2, continuous collision".into(),
+            overrides: with(&["ccd=true"]),
         });
     }
     if f.dynamic >= 64 {
         out.push(Candidate {
-            name: "impulses 8 it, grid".into(),
-            overrides: with(&["substeps=1", "broad_phase=grid"]),
-        });
-        out.push(Candidate {
-            name: "impulses 8 it, sleeping".into(),
-            overrides: with(&["substeps=1", "sleeping=true"]),
+            name: "impulses 2 x 2, sleeping".into(),
+            overrides: with(&["sleeping=true"]),
         });
     }
     out
+}
+
+/// The default's solver at `substeps` sub-steps of `passes` passes (the default is 2 x 2).
+pub fn impulse_ladder(substeps: u32, passes: u32) -> Candidate {
+    Candidate {
+        name: format!(
+            "impulses {substeps} sub-step{} x {passes} passes{}",
+            if substeps == 1 { "" } else { "s" },
+            if (substeps, passes) == (2, 2) {
+                " (the default)"
+            } else {
+                ""
+            }
+        ),
+        overrides: vec![
+            "solver=impulses".into(),
+            "broad_phase=grid".into(),
+            format!("substeps={substeps}"),
+            format!("impulse_iterations={passes}"),
+            "split_impulses=true".into(),
+            "rest_load=true".into(),
+            "warm_starting=true".into(),
+            "relax_iterations=0".into(),
+            "contact_hertz=0".into(),
+        ],
+    }
 }

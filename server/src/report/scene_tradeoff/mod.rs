@@ -23,6 +23,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use glam::DVec2;
 
+use ricochet_engine::criteria::Criteria;
 use ricochet_engine::scene;
 use ricochet_engine::world::{Limits, World};
 use ricochet_protocol::command::TimedAction;
@@ -35,7 +36,7 @@ mod tests;
 
 pub use candidates::{default_candidates, Candidate, Features};
 pub use output::index;
-use run::{body_error, particle_error, timed_run};
+use run::{body_error, body_errors, particle_error, timed_run};
 pub use run::{run, Run};
 
 use super::percentile;
@@ -102,6 +103,11 @@ impl Subject {
         Ok(scene::parse_with(&self.text, &self.path, &all, &limits)?)
     }
 
+    /// The scene's own `[criteria]`, if it states any.
+    pub fn criteria(&self) -> Result<Option<Criteria>> {
+        Ok(scene::criteria(&self.text, &self.path)?)
+    }
+
     /// The scene's length unit: the median size (larger side, or diameter) of its dynamic
     /// bodies, or a hundredth of its bounds' diagonal without any.
     pub fn length_unit(&self) -> Result<f64> {
@@ -149,6 +155,12 @@ pub struct Row {
     pub closed_form_error: Option<f64>,
     pub nan: bool,
     pub on_front: bool,
+    /// Per frame, the worst position error of anything that moves up to that frame, each
+    /// no lower than what the reference resolves there ([`Reference::agreement_by_frame`]).
+    pub errors: Vec<f64>,
+    /// What the run failed of the criteria that stay meaningful whatever the trajectories
+    /// do ([`failed_criteria`]); empty when it holds them all.
+    pub fails: Vec<String>,
 }
 
 /// A run's error against the scene's closed form.
@@ -196,13 +208,40 @@ pub struct Reference {
     pub stopped_by_budget: bool,
     /// Errors below this are not resolved: max(agreement, 1e-12 of the scene's size).
     pub resolution: f64,
+    /// Per frame, how far the last two refinements had differed up to that frame (worst
+    /// body position difference; infinite where only one refinement ran). Where it grows
+    /// to the size of a body the scene's trajectories diverge: refining the step changes
+    /// where things go, and an error against the reference means nothing past there.
+    pub agreement_by_frame: Vec<f64>,
     pub run: Run,
 }
+
+impl Reference {
+    /// The frames from the start over which the reference is good to `within`.
+    pub fn horizon(&self, within: f64) -> usize {
+        self.agreement_by_frame
+            .iter()
+            .take_while(|&&a| a <= within)
+            .count()
+    }
+
+    /// Whether the scene's trajectories diverge: the last two refinements end further
+    /// apart than [`DIVERGED`] of the scene's length unit.
+    pub fn diverges(&self, unit: f64) -> bool {
+        self.agreement_by_frame
+            .last()
+            .is_some_and(|&a| a > DIVERGED * unit)
+    }
+}
+
+/// Refinements that end further apart than this share of the scene's length unit: the
+/// trajectories diverge (a smash, a crowd, a tumble), they do not converge.
+pub const DIVERGED: f64 = 0.1;
 
 /// The reference's settings at refinement `k` (0, 1, ...): sub-steps and passes double.
 fn reference_overrides(k: u32, contacts: bool) -> (String, Vec<String>) {
     let substeps = 4u32 << k;
-    let iterations = 16u32 << k;
+    let iterations = 8u32 << k;
     let mut o = vec![
         "integrator=exact".to_string(),
         format!("substeps={substeps}"),
@@ -239,6 +278,9 @@ pub struct Options {
     /// Seconds the reference may take: a refinement expected to go past it (four times
     /// the one before) is not run, and the report says how far the last two agreed.
     pub reference_budget: f64,
+    /// Seconds the whole measure may take: once spent, the candidates not yet run are
+    /// left out (the report lists them). The candidates run in the order given.
+    pub budget: Option<f64>,
 }
 
 impl Default for Options {
@@ -247,6 +289,7 @@ impl Default for Options {
             tolerance: 1e-6,
             max_refinements: 4,
             reference_budget: 300.0,
+            budget: None,
         }
     }
 }
@@ -260,6 +303,11 @@ pub struct Report {
     pub unit: f64,
     pub reference: Reference,
     pub rows: Vec<Row>,
+    /// Candidates left out because the measure's budget was spent.
+    pub skipped: Vec<String>,
+    /// The scene states its own `[criteria]` (else the candidates are judged by
+    /// [`failed_criteria`]'s generic ones).
+    pub stated_criteria: bool,
 }
 
 /// Measures `candidates` (or the default matrix for the scene) on `subject`; `progress`
@@ -270,7 +318,9 @@ pub fn measure(
     opts: &Options,
     progress: &indicatif::ProgressBar,
 ) -> Result<Report> {
+    let measuring = Instant::now();
     let unit = subject.length_unit()?;
+    let stated_criteria = subject.criteria()?.is_some();
     // The scene's own setting first: its features choose the matrix.
     progress.set_message("the scene's own setting");
     progress.set_length(0);
@@ -279,6 +329,9 @@ pub fn measure(
     let candidates = candidates.unwrap_or_else(|| default_candidates(&features));
 
     // The reference: refined until two refinements agree, or the budget is spent.
+    let reference_budget = opts.budget.map_or(opts.reference_budget, |b| {
+        opts.reference_budget.min(b / 2.0)
+    });
     let started = Instant::now();
     let mut k = 0;
     let (mut name, mut overrides) = reference_overrides(k, features.contacts);
@@ -287,10 +340,10 @@ pub fn measure(
     let mut took = Instant::now();
     let mut last = run(subject, &overrides, || progress.inc(1))?;
     let mut last_took = took.elapsed().as_secs_f64();
-    let mut agreement = f64::INFINITY;
+    let mut agreement_by_frame = vec![f64::INFINITY; subject.steps as usize];
     let mut stopped_by_budget = false;
     while k < opts.max_refinements {
-        if started.elapsed().as_secs_f64() + 4.0 * last_took > opts.reference_budget {
+        if started.elapsed().as_secs_f64() + 4.0 * last_took > reference_budget {
             stopped_by_budget = true;
             break;
         }
@@ -301,17 +354,23 @@ pub fn measure(
         took = Instant::now();
         let next = run(subject, &next_overrides, || progress.inc(1))?;
         last_took = took.elapsed().as_secs_f64();
-        agreement = body_error(&last, &next).0;
+        agreement_by_frame = running_worst(&body_errors(&last, &next), None);
         (name, overrides, last) = (next_name, next_overrides, next);
-        if agreement <= opts.tolerance * unit {
+        if agreement_by_frame
+            .last()
+            .is_some_and(|&a| a <= opts.tolerance * unit)
+        {
             break;
         }
     }
     if features.dynamic == 0 {
         // No bodies: nothing for the solver to refine; particles follow the integrator.
-        agreement = 0.0;
+        agreement_by_frame.fill(0.0);
     }
-    let resolution = agreement.max(1e-12 * subject.extent()?);
+    let agreement = agreement_by_frame.last().copied().unwrap_or(0.0);
+    let floor_at = 1e-12 * subject.extent()?;
+    let resolution = agreement.max(floor_at);
+    let resolved_by_frame: Vec<f64> = agreement_by_frame.iter().map(|a| a.max(floor_at)).collect();
     let reference = Reference {
         overrides,
         name,
@@ -320,11 +379,21 @@ pub fn measure(
         resolution,
         converged: agreement <= opts.tolerance * unit,
         stopped_by_budget,
+        agreement_by_frame,
         run: last,
     };
+    let free = subject.world(&[])?.config.gravity == DVec2::ZERO;
 
     let mut rows = Vec::with_capacity(candidates.len());
+    let mut skipped = Vec::new();
     for candidate in &candidates {
+        if opts
+            .budget
+            .is_some_and(|b| measuring.elapsed().as_secs_f64() > b)
+        {
+            skipped.push(candidate.name.clone());
+            continue;
+        }
         progress.set_message(candidate.name.clone());
         let r = if candidate.overrides.is_empty() {
             None
@@ -336,8 +405,9 @@ pub fn measure(
         ms.sort_by(f64::total_cmp);
         let floor = |e: f64| if e.is_nan() { e } else { e.max(resolution) };
         let (worst, rms) = body_error(r, &reference.run);
+        let mut by_frame = body_errors(r, &reference.run);
         let (particle_error, mismatch) = if features.particles {
-            let (w, rms, unmatched) = particle_error(r, &reference.run);
+            let (w, rms, unmatched) = particle_error(r, &reference.run, &mut by_frame);
             (Some((floor(w), floor(rms))), unmatched)
         } else {
             (None, 0)
@@ -359,6 +429,8 @@ pub fn measure(
                 .map(|f| closed_form_error(subject, f, r)),
             nan: r.nan,
             on_front: false,
+            errors: running_worst(&by_frame, Some(&resolved_by_frame)),
+            fails: failed_criteria(r, &reference.run, stated_criteria, unit, free),
         });
     }
     let fronts: Vec<bool> = rows.iter().map(|r| on_front(r, &rows)).collect();
@@ -372,7 +444,90 @@ pub fn measure(
         unit,
         reference,
         rows,
+        skipped,
+        stated_criteria,
     })
+}
+
+/// The running worst of per-frame figures, each no lower than `floor`'s figure at its
+/// frame; a NaN stays NaN from its frame on.
+fn running_worst(by_frame: &[f64], floor: Option<&[f64]>) -> Vec<f64> {
+    let mut worst = 0.0_f64;
+    by_frame
+        .iter()
+        .enumerate()
+        .map(|(f, &e)| {
+            let e = floor.map_or(e, |fl| e.max(fl.get(f).copied().unwrap_or(0.0)));
+            worst = if e.is_nan() || worst.is_nan() {
+                f64::NAN
+            } else {
+                worst.max(e)
+            };
+            worst
+        })
+        .collect()
+}
+
+/// Drift this small (in body sizes) is a pile at rest: a candidate must keep it so.
+const AT_REST: f64 = 0.02;
+/// Overlap left at the end beyond this (in sizes of the smaller body) is penetration.
+const PENETRATION: f64 = 0.01;
+/// Kinetic energy made beyond the reference's, as a share of its start.
+const ENERGY_MADE: f64 = 0.01;
+
+/// What a run fails of the criteria that stay meaningful on any scene, whether or not
+/// its trajectories diverge (named as the scene's `[criteria]` fields):
+///
+/// - where the scene states `[criteria]`, those, over the measured steps;
+/// - else, against the reference's run: `inside` (a body went further than a unit, or a
+///   tenth of the reference's reach, beyond every place the reference's bodies went: it
+///   escaped or tunnelled), `drift` (the reference's bodies rest within 0.02 of their
+///   sizes; the run's drift more than that or twice the reference's), `final_overlap`
+///   (more than 0.01 of a body's size, or twice the reference's, left at the end),
+///   `energy_rise` (without gravity: kinetic energy made beyond the reference's by 1% of
+///   its start);
+/// - and always `non_finite`, when a number left the finite.
+///
+/// Momentum is not judged: contacts with static bodies change it on purpose.
+pub fn failed_criteria(
+    run: &Run,
+    reference: &Run,
+    stated: bool,
+    unit: f64,
+    free: bool,
+) -> Vec<String> {
+    let mut out = Vec::new();
+    if run.nan || run.figures.non_finite {
+        out.push("non_finite".to_string());
+    }
+    if stated {
+        out.extend(
+            run.verdict
+                .iter()
+                .filter(|j| !j.pass)
+                .map(|j| j.name.to_string()),
+        );
+        return out;
+    }
+    let (f, r) = (&run.figures, &reference.figures);
+    let [lo, hi] = reference.extent;
+    if lo.is_finite() && hi.is_finite() {
+        let margin = unit.max(0.1 * (hi - lo).length());
+        let [a, b] = run.extent;
+        if a.cmplt(lo - margin).any() || b.cmpgt(hi + margin).any() {
+            out.push("inside".into());
+        }
+    }
+    if r.drift <= AT_REST && f.drift > AT_REST.max(2.0 * r.drift) {
+        out.push("drift".into());
+    }
+    if f.final_overlap > PENETRATION.max(2.0 * r.final_overlap) {
+        out.push("final_overlap".into());
+    }
+    if free && f.energy_rise > r.energy_rise + ENERGY_MADE {
+        out.push("energy_rise".into());
+    }
+    out
 }
 
 /// The error a row is judged by (the front, the chart, accuracy targets): the worst

@@ -10,7 +10,7 @@ use crate::report::chart::{panel, register_font, Point};
 impl Report {
     pub fn to_csv(&self) -> String {
         let mut out = String::from(
-            "scene,setting,overrides,ms_median,ms_p10,ms_p90,solver_work,worst_error,rms_error,deepest_penetration,worst_energy_change,particle_worst_error,particle_rms_error,nan,on_front\n",
+            "scene,setting,overrides,ms_median,ms_p10,ms_p90,solver_work,worst_error,rms_error,deepest_penetration,worst_energy_change,particle_worst_error,particle_rms_error,nan,on_front,fails\n",
         );
         for r in &self.rows {
             let (pw, pr) = r
@@ -19,7 +19,7 @@ impl Report {
                     (format!("{w:.6e}"), format!("{rms:.6e}"))
                 });
             out += &format!(
-                "{},\"{}\",\"{}\",{:.6},{:.6},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{pw},{pr},{},{}\n",
+                "{},\"{}\",\"{}\",{:.6},{:.6},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{pw},{pr},{},{},\"{}\"\n",
                 self.scene.display(),
                 r.name,
                 r.overrides.join(";"),
@@ -32,7 +32,8 @@ impl Report {
                 r.deepest_penetration,
                 r.worst_energy_change,
                 r.nan,
-                r.on_front
+                r.on_front,
+                r.fails.join(";")
             );
         }
         out
@@ -48,8 +49,27 @@ impl Report {
         } else {
             "not converged within the refinements allowed".into()
         };
+        let diverges = if r.diverges(self.unit) {
+            format!(
+                " The trajectories diverge: the refinements agree within a thousandth of the length unit over the first {} of {} steps only, and an error against the reference means nothing past there.",
+                r.horizon(1e-3 * self.unit),
+                self.steps
+            )
+        } else {
+            String::new()
+        };
+        let judged = if self.stated_criteria {
+            "Criteria: the scene's own `[criteria]`, over the measured steps."
+        } else {
+            "Criteria (the scene states none): escapes (`inside`), resting drift, penetration left at the end and, without gravity, energy made, each against the reference's run."
+        };
+        let skipped = if self.skipped.is_empty() {
+            String::new()
+        } else {
+            format!(" Left out by the time budget: {}.", self.skipped.join(", "))
+        };
         format!(
-            "Reference: {} ({} refinement{} of sub-steps and passes; the last two agree to {:.2e} units, worst over the run: {how}). Errors below {:.2e} are not resolved and show as that. The scene's length unit (median dynamic body size): {}.",
+            "Reference: {} ({} refinement{} of sub-steps and passes; the last two agree to {:.2e} units, worst over the run: {how}). Errors below {:.2e} are not resolved and show as that. The scene's length unit (median dynamic body size): {}.{diverges} {judged}{skipped}",
             r.name,
             r.refinements,
             if r.refinements == 1 { "" } else { "s" },
@@ -68,11 +88,11 @@ impl Report {
         if particles {
             out += " particle error worst / RMS |";
         }
-        out += " front |\n|---|---|---|---|---|---|---|";
+        out += " fails | front |\n|---|---|---|---|---|---|---|";
         if particles {
             out += "---|";
         }
-        out += "---|\n";
+        out += "---|---|\n";
         for r in &self.rows {
             out += &format!(
                 "| {} | {:.5} ({:.5}-{:.5}) | {} | {:.2e}{} | {:.2e} | {:.2e} | {:.2e} |",
@@ -91,7 +111,15 @@ impl Report {
                 let (w, rms) = r.particle_error.unwrap_or((0.0, 0.0));
                 out += &format!(" {w:.2e} / {rms:.2e} |");
             }
-            out += &format!(" {} |\n", if r.on_front { "yes" } else { "" });
+            out += &format!(
+                " {} | {} |\n",
+                if r.fails.is_empty() {
+                    "none".to_string()
+                } else {
+                    r.fails.join(", ")
+                },
+                if r.on_front { "yes" } else { "" }
+            );
         }
         out
     }

@@ -6,6 +6,7 @@ use std::time::Instant;
 use anyhow::Result;
 use glam::DVec2;
 
+use ricochet_engine::criteria::{Criteria, Figures, Judgement, Monitor};
 use ricochet_engine::world::World;
 
 use super::{Features, Subject};
@@ -26,6 +27,13 @@ pub struct Run {
     pub worst_energy_change: f64,
     pub nan: bool,
     pub features: Features,
+    /// The worst figures of the run on the criteria's measures (drift, overlap at the end,
+    /// speed, energy made), whatever the scene states.
+    pub figures: Figures,
+    /// The scene's own `[criteria]` judged over this run, if it states any.
+    pub verdict: Vec<Judgement>,
+    /// The box every dynamic body's centre stayed in over the run.
+    pub extent: [DVec2; 2],
 }
 
 /// How many particle positions a run keeps at most (sampled frames times particles).
@@ -65,8 +73,33 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
             statics,
             ..Features::default()
         },
+        figures: Figures::default(),
+        verdict: Vec::new(),
+        extent: [DVec2::ZERO; 2],
     };
     run.features.dynamic = run.dynamic.len();
+    // The scene's criteria over the measured steps; the overlap at the end is measured
+    // whether or not the scene asks for it (an infinite limit is not judged).
+    let mut stated = subject.criteria()?;
+    if let Some(c) = stated.as_mut().filter(|c| c.steps > subject.steps) {
+        // A run shorter than the scene's is not at the scene's end: what the scene asks
+        // of its end is judged by a run of its length (the accuracy pick's check).
+        c.final_speed = None;
+        c.final_overlap = None;
+    }
+    let criteria = Criteria {
+        steps: subject.steps.max(1),
+        final_overlap: Some(
+            stated
+                .as_ref()
+                .and_then(|c| c.final_overlap)
+                .unwrap_or(f64::INFINITY),
+        ),
+        ..stated.clone().unwrap_or_default()
+    };
+    let mut monitor = Monitor::new(&w, &criteria);
+    let (watched, mut watching) = (w.bodies().len(), true);
+    let mut extent = [DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)];
     let mut particle_every = 1u64;
     let mut inputs = subject.inputs.iter().peekable();
     for _ in 0..subject.steps {
@@ -89,11 +122,17 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
             let e = energy(&w);
             run.worst_energy_change = run.worst_energy_change.max((e - e0).abs() / scale);
         }
+        // Inputs that add or remove bodies end what the monitor can follow.
+        watching &= w.bodies().len() == watched;
+        if watching {
+            monitor.observe(&w);
+        }
         let bodies = w.bodies();
         for &i in &run.dynamic {
             let b = bodies.get(i);
             let p = b.map_or(DVec2::NAN, |b| b.pos);
             run.nan |= !p.is_finite();
+            extent = [extent[0].min(p), extent[1].max(p)];
             if let Some(b) = b {
                 run.features.fast |= b.vel.length() * w.config.dt > 0.01 * size;
             }
@@ -113,6 +152,15 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
         }
         tick();
     }
+    run.figures = monitor.figures().clone();
+    if stated.is_some() {
+        run.verdict = monitor
+            .verdict()
+            .into_iter()
+            .filter(|j| j.limit.is_finite())
+            .collect();
+    }
+    run.extent = extent;
     Ok(run)
 }
 
@@ -157,20 +205,55 @@ pub(super) fn body_error(a: &Run, b: &Run) -> (f64, f64) {
     (worst, if n > 0 { (sum / n as f64).sqrt() } else { 0.0 })
 }
 
+/// The worst position difference of two runs' bodies at each frame (NaN where either is
+/// not a number).
+pub(super) fn body_errors(a: &Run, b: &Run) -> Vec<f64> {
+    let n = a.dynamic.len();
+    let frames = a.ms.len().min(b.ms.len());
+    if n == 0 {
+        return vec![0.0; frames];
+    }
+    a.bodies
+        .chunks(n)
+        .zip(b.bodies.chunks(n))
+        .map(|(pa, pb)| {
+            pa.iter()
+                .zip(pb)
+                .map(|(p, q)| (*p - *q).length())
+                .fold(0.0, |w: f64, d| {
+                    if d.is_nan() || w.is_nan() {
+                        f64::NAN
+                    } else {
+                        w.max(d)
+                    }
+                })
+        })
+        .collect()
+}
+
 /// (worst, RMS, particles unmatched) of the particle differences at the frames both
-/// sampled.
-pub(super) fn particle_error(a: &Run, b: &Run) -> (f64, f64, u64) {
+/// sampled; each sampled frame's worst is also raised into `by_frame` (indexed by frame
+/// minus one, as the bodies' are).
+pub(super) fn particle_error(a: &Run, b: &Run, by_frame: &mut [f64]) -> (f64, f64, u64) {
     let (mut worst, mut sum, mut n, mut unmatched) = (0.0f64, 0.0, 0usize, 0u64);
     for (fa, pa) in &a.particles {
         let Some((_, pb)) = b.particles.iter().find(|(fb, _)| fb == fa) else {
             continue;
         };
         unmatched += pa.len().abs_diff(pb.len()) as u64;
+        let mut here = 0.0_f64;
         for (p, q) in pa.iter().zip(pb) {
             let d = f64::from((p[0] - q[0]).hypot(p[1] - q[1]));
             worst = worst.max(d);
+            here = here.max(d);
             sum += d * d;
             n += 1;
+        }
+        if let Some(slot) = (*fa as usize)
+            .checked_sub(1)
+            .and_then(|k| by_frame.get_mut(k))
+        {
+            *slot = slot.max(here);
         }
     }
     (
