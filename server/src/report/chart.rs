@@ -27,7 +27,7 @@ pub fn register_font() -> Result<()> {
         .map_err(|e| anyhow::anyhow!(e))
 }
 
-/// A setting as a point: median ms per step, error, whether it is on the front, and the
+/// A setting as a point: mean ms per step over the run, error, whether it is on the front, and the
 /// number the legend gives it.
 pub struct Point {
     pub ms: f64,
@@ -61,7 +61,7 @@ where
         .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())?;
     chart
         .configure_mesh()
-        .x_desc("median ms per step")
+        .x_desc("mean ms per step (whole run)")
         .y_desc(error_name)
         .axis_desc_style(("sans-serif", 13))
         .x_label_formatter(&|v| format!("{v:.2e}"))
