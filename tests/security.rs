@@ -32,6 +32,15 @@ fn hostile_inputs(long_name: &str) -> Vec<(Vec<u8>, String)> {
             "not a regular file",
         ),
         (r#"{"do":"load","path":"big.toml"}"#.into(), "over the"),
+        // A file inside the directory that is not a scene: named, never quoted.
+        (
+            r#"{"do":"load","path":"secrets.json"}"#.into(),
+            "secrets.json",
+        ),
+        (
+            r#"{"do":"load","path":"secrets.toml"}"#.into(),
+            "secrets.toml",
+        ),
         (r#"{"do":"load","path":"/dev/zero"}"#.into(), "no scene"),
         (
             r#"{"do":"load","path":"nothing-here.toml"}"#.into(),
@@ -93,6 +102,16 @@ fn refused_inputs_are_answered_change_nothing_and_the_server_keeps_stepping() {
         .unwrap();
     assert!(fifo.success(), "mkfifo");
     std::fs::write(scenes.join("big.toml"), vec![b'#'; 2 << 20]).unwrap();
+    std::fs::write(
+        scenes.join("secrets.json"),
+        "{\n  \"user\": \"admin\",\n  \"password\": \"hunter2-secret\"\n}\n",
+    )
+    .unwrap();
+    std::fs::write(
+        scenes.join("secrets.toml"),
+        "[world]\ndt = \"hunter2-secret\"\n",
+    )
+    .unwrap();
 
     // The reference: the same scene stepped headless, with no input at all.
     let inputs = hostile_inputs(&"g".repeat(10_000));
@@ -138,6 +157,10 @@ fn refused_inputs_are_answered_change_nothing_and_the_server_keeps_stepping() {
         );
         assert!(error.len() <= 400, "{shown}: a {} byte error", error.len());
         assert!(!error.contains("root:"), "{shown}: echoed a file: {error}");
+        assert!(
+            !error.contains("hunter2"),
+            "{shown}: echoed a file: {error}"
+        );
         assert!(
             request(&client, Command::Server(ServerCommand::Step { n: 1 })).ok,
             "{shown}: the step after it"

@@ -255,3 +255,28 @@ fn a_scene_whose_step_would_cost_more_than_its_work_limit_is_refused() {
     assert!(e.message.contains("step_work"), "{e}");
     scene::parse(&pile("sweep"), Path::new("t.toml"), &[]).unwrap();
 }
+
+/// A file that is not a scene (a secret, a journal, another tool's config) named as one:
+/// the error names the file, the line and a field or `scene`, never its text.
+#[test]
+fn a_refusal_never_quotes_the_files_text() {
+    for (text, secret) in [
+        (
+            "{\n  \"user\": \"admin\",\n  \"password\": \"hunter2-secret\"\n}\n",
+            "hunter2",
+        ),
+        ("password hunter2-secret\n", "hunter2"),
+        ("[world]\ndt = \"hunter2-secret\"\n", "hunter2"),
+        ("[world]\ngravity = [0, \"hunter2-secret\"]\n", "hunter2"),
+        (
+            "[[body]]\nid = 'x'\nshape = \"hunter2-secret\"\n",
+            "hunter2",
+        ),
+    ] {
+        let e = scene::parse(text, Path::new("secrets.json"), &[]).unwrap_err();
+        let shown = e.to_string();
+        assert!(!shown.contains(secret), "{shown}");
+        assert!(shown.starts_with("secrets.json:"), "{shown}");
+        assert!(e.line >= 1, "{shown}");
+    }
+}

@@ -43,7 +43,7 @@ pub struct Hosted {
     pub last_step_ms: f32,
     /// Bumped by every (re)load, so viewers can tell a new scene.
     pub generation: u64,
-    scenes_dir: PathBuf,
+    scenes_dir: Option<PathBuf>,
     limits: Limits,
     pub health: Health,
     /// The setting picked for the scene's accuracy target, and why.
@@ -213,7 +213,12 @@ impl Hosted {
     ) -> Result<Vec<String>, String> {
         let (text, name) = match (path, text) {
             (Some(p), None) => {
-                let file = resolve_scene(&self.scenes_dir, p)?;
+                let file = match &self.scenes_dir {
+                    Some(dir) => resolve_scene(dir, p)?,
+                    None => {
+                        return Err("the server has no scenes directory: start it with --scenes DIR to load scenes by name, or send the scene's text".to_string())
+                    }
+                };
                 let text = read_scene(&file, &short(p, 64))?;
                 // Errors name the scene as the client asked for it, not where it lives.
                 (text, PathBuf::from(p))

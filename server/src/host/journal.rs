@@ -433,7 +433,7 @@ mod tests {
             keyframe_interval: 60,
             max_frames: None,
             dump: None,
-            scenes_dir: PathBuf::from("."),
+            scenes_dir: None,
             limits: Limits::default(),
             max_rate: 1000.0,
             inbox: InboxLimits::default(),

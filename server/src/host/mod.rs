@@ -84,8 +84,9 @@ pub struct HostOptions {
     /// Append every published frame to this file as a dump line (full precision, as
     /// `simulate --dump` writes them), flushed each frame.
     pub dump: Option<PathBuf>,
-    /// Where `load` finds scenes by name; nothing outside it is read.
-    pub scenes_dir: PathBuf,
+    /// Where `load` finds scenes by name; nothing outside it is read. None: `load` by
+    /// name is refused (never the working directory by default).
+    pub scenes_dir: Option<PathBuf>,
     /// The limits every world hosted here runs under at most (a scene's `[limits]` may
     /// lower them).
     pub limits: Limits,

@@ -51,6 +51,14 @@ impl Default for BodyDef {
 /// the numbers but a step's products overflow towards infinity.
 pub const MAX_COORDINATE: f64 = 1e12;
 
+/// The smallest mass a dynamic body may have: its inverse stays a finite number the
+/// solver can multiply (a mass of 5e-324 would have an infinite one).
+pub const MIN_MASS: f64 = 1e-9;
+/// The largest mass: with [`MIN_MASS`], mass ratios up to 1e21, all finite.
+pub const MAX_MASS: f64 = 1e12;
+/// The largest friction coefficient (real materials stay below 2).
+pub const MAX_FRICTION: f64 = 100.0;
+
 /// Why a body definition was refused: the field and the reason.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{field}: {reason}")]
@@ -60,7 +68,9 @@ pub struct BodyError {
 }
 
 impl BodyDef {
-    /// Checks every number; NaN, infinity, negative masses and absurd sizes are refused.
+    /// Checks every number; NaN, infinity, negative or vanishing masses, absurd sizes,
+    /// restitution above 1 (a bounce that makes energy) and friction above
+    /// [`MAX_FRICTION`] are refused, so no accepted body makes a non-finite state.
     pub fn validate(&self) -> Result<(), BodyError> {
         let err = |field, reason: String| Err(BodyError { field, reason });
         let finite_in = |v: DVec2| v.is_finite() && v.abs().max_element() <= MAX_COORDINATE;
@@ -93,22 +103,28 @@ impl BodyDef {
                 format!("{} must be finite and within ±{MAX_COORDINATE}", self.vel),
             );
         }
-        if !(self.mass.is_finite() && self.mass >= 0.0) {
+        if !(self.mass == 0.0 || (MIN_MASS..=MAX_MASS).contains(&self.mass)) {
             return err(
                 "mass",
-                format!("{} must be a finite number, 0 (static) or above", self.mass),
+                format!(
+                    "{:e} must be 0 (static) or from {MIN_MASS:e} to {MAX_MASS:e}",
+                    self.mass
+                ),
             );
         }
-        if !(self.restitution.is_finite() && self.restitution >= 0.0) {
+        if !(0.0..=1.0).contains(&self.restitution) {
             return err(
                 "restitution",
-                format!("{} must be a finite number, 0 or above", self.restitution),
+                format!(
+                    "{} must be from 0 to 1 (above 1 a bounce makes energy)",
+                    self.restitution
+                ),
             );
         }
-        if !(self.friction.is_finite() && self.friction >= 0.0) {
+        if !(0.0..=MAX_FRICTION).contains(&self.friction) {
             return err(
                 "friction",
-                format!("{} must be a finite number, 0 or above", self.friction),
+                format!("{} must be from 0 to {MAX_FRICTION}", self.friction),
             );
         }
         if let Some(g) = self.gravity {

@@ -430,26 +430,79 @@ impl Ctx<'_> {
                 let key = text_line
                     .split_once('=')
                     .map(|(k, _)| k.trim().to_string())
-                    .filter(|k| !k.is_empty() && !k.starts_with('['));
+                    .filter(|k| is_name(k));
+                // A table header as written (`[[body]`), where its name has a name's form.
                 let header = Some(text_line.trim())
-                    .filter(|l| l.starts_with('['))
+                    .filter(|l| l.starts_with('[') && l.len() <= 68)
+                    .filter(|l| is_name(l.trim_matches(['[', ']'])))
                     .map(str::to_string);
                 let field = key
                     .or(header)
-                    .or_else(|| backticked(e.message()).map(str::to_string))
-                    .unwrap_or_else(|| text_line.trim().to_string());
+                    .or_else(|| {
+                        backticked(e.message())
+                            .filter(|k| is_name(k))
+                            .map(str::to_string)
+                    })
+                    .unwrap_or_else(|| "scene".to_string());
                 (line, field)
             }
-            None => (0, backticked(e.message()).unwrap_or("scene").to_string()),
+            None => (
+                0,
+                backticked(e.message())
+                    .filter(|k| is_name(k))
+                    .unwrap_or("scene")
+                    .to_string(),
+            ),
         };
-        // A line of the file stands in for a field name only cut short.
+        // No text of the file is quoted (a file that is not a scene may hold secrets):
+        // a field only where it has the form of a name, and the message with every quoted
+        // value taken out.
         SceneError {
             file: self.file.to_path_buf(),
             line,
-            field: crate::world::short(&field, 64),
-            message: crate::world::short(e.message().trim(), 300),
+            field,
+            message: crate::world::short(&unquoted(e.message().trim()), 300),
         }
     }
+}
+
+/// Whether `s` has the form of a TOML key or table name (letters, digits, `_`, `-`,
+/// `.`; at most 64 bytes): only such a piece of a file is named in an error.
+fn is_name(s: &str) -> bool {
+    !s.is_empty()
+        && s.len() <= 64
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
+}
+
+/// A parser's message with what it quotes of the file taken out: text in double quotes
+/// becomes `"…"`, and a backticked piece `` `…` `` unless it is what the parser
+/// expected (names and tokens such as `` `=` ``) or an unknown field's name.
+fn unquoted(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(k) = rest.find(['"', '`']) {
+        let q = rest[k..].chars().next().expect("found");
+        out.push_str(&rest[..k]);
+        let after = &rest[k + 1..];
+        let Some(end) = after.find(q) else {
+            out.push(q);
+            out.push('…');
+            return out;
+        };
+        let inner = &after[..end];
+        // Kept: the parser's alternatives (after "expected") and an unknown field's name;
+        // a value it quotes (an unknown variant, a number of the wrong type) is not.
+        let told = out.contains("expected") || out.ends_with("field ");
+        let keep =
+            q == '`' && told && (is_name(inner) || inner.bytes().all(|b| b.is_ascii_punctuation()));
+        out.push(q);
+        out.push_str(if keep { inner } else { "…" });
+        out.push(q);
+        rest = &after[end + 1..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// The first `name` in backticks of a serde message ("unknown field `siz`").

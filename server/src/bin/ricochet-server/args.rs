@@ -44,7 +44,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub dump: Option<PathBuf>,
     /// The directory `load` commands may name scenes in (nothing outside it is read);
-    /// the directory of --scene by default.
+    /// the directory of --scene by default, unless that is the working directory (then
+    /// none: `load` by name is refused).
     #[arg(long, value_name = "DIR")]
     pub scenes: Option<PathBuf>,
     /// Lower or raise a limit of the hosted worlds, e.g. --limit bodies=5000

@@ -65,14 +65,21 @@ fn main() -> Result<()> {
                     "--max-rate {max_rate}: must be a number of steps per second above 0"
                 );
             }
+            // Without --scenes, the directory of --scene, unless that is the working
+            // directory: a scene named bare (or a resumed journal) must not open the
+            // server's working directory to `load`.
             let scenes_dir = match (scenes, &scene) {
-                (Some(dir), _) => dir,
-                (None, None) => PathBuf::from("."),
-                (None, Some(scene)) => scene
-                    .parent()
-                    .filter(|p| !p.as_os_str().is_empty())
-                    .unwrap_or(Path::new("."))
-                    .to_path_buf(),
+                (Some(dir), _) => Some(dir),
+                (None, None) => None,
+                (None, Some(scene)) => {
+                    let dir = scene.parent().unwrap_or(Path::new(""));
+                    let cwd = std::env::current_dir()
+                        .ok()
+                        .and_then(|d| d.canonicalize().ok());
+                    let here = dir.as_os_str().is_empty()
+                        || dir.canonicalize().ok().is_some_and(|d| Some(d) == cwd);
+                    (!here).then(|| dir.to_path_buf())
+                }
             };
             host::run(HostOptions {
                 scene,
