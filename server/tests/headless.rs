@@ -362,7 +362,8 @@ b = "stairs"
         assert!(particle_worst.is_finite() && particle_worst >= 0.0, "{row}");
     }
     assert!(
-        rows.iter().any(|r| r.split(',').rev().nth(1) == Some("true")),
+        rows.iter()
+            .any(|r| r.split(',').rev().nth(1) == Some("true")),
         "a front: {csv}"
     );
     let page = std::fs::read_to_string(out_dir.join("stairs.md")).unwrap();

@@ -162,3 +162,27 @@ fn echoed_names_are_cut_short() {
         .unwrap_err();
     assert!(e.to_string().len() < 400, "{} bytes", e.to_string().len());
 }
+
+/// The settle solve runs in the first step, sub-steps times `settle_iterations` passes:
+/// it is priced with the step, so a scene or `--set` asking for hours of it is refused
+/// before anything runs, naming the field (one `load` once stalled a server 7.7 s).
+#[test]
+fn the_first_steps_settle_solve_is_priced() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/pyramid-100.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let refusal = |o: &[&str]| {
+        let o: Vec<String> = o.iter().map(|s| s.to_string()).collect();
+        match scene::parse(&text, &path, &o) {
+            Ok(_) => panic!("{o:?} was accepted"),
+            Err(e) => e.to_string(),
+        }
+    };
+    // Over the passes a step may run: sub-steps times settle passes.
+    let e = refusal(&["substeps=1000", "settle_iterations=100000"]);
+    assert!(e.contains("settle_iterations"), "{e}");
+    // Within the passes, but over the step's work budget for this pile (5050 boxes).
+    let e = refusal(&["settle_iterations=30000"]);
+    assert!(e.contains("step_work"), "{e}");
+    // A modest settle solve is accepted.
+    scene::parse(&text, &path, &["settle_iterations=20".to_string()]).unwrap();
+}

@@ -309,7 +309,10 @@ impl WorldConfig {
         Ok(())
     }
 
-    /// Solver passes one step runs at most: sub-steps times the passes of each.
+    /// Solver passes one step runs at most: sub-steps times the passes of each. Under
+    /// the impulse solver the first step also runs the settle solve (sub-steps times
+    /// `settle_iterations`), so the worst step, and with it the work a scene or a
+    /// setting is priced at, counts it.
     pub fn passes_per_step(&self) -> u64 {
         self.substeps as u64
             * match self.solver {
@@ -317,6 +320,7 @@ impl WorldConfig {
                 Solver::Impulses => {
                     self.impulse_iterations.max(self.start_iterations) as u64
                         + self.relax_iterations as u64
+                        + self.settle_iterations as u64
                 }
             }
     }
@@ -404,12 +408,15 @@ impl WorldConfig {
         if passes > MAX_PASSES_PER_STEP {
             let name = match self.solver {
                 Solver::Relaxation => "relaxation_iterations",
+                Solver::Impulses if self.settle_iterations > self.impulse_iterations => {
+                    "settle_iterations"
+                }
                 Solver::Impulses => "impulse_iterations",
             };
             return Err(invalid(
                 name,
                 format!(
-                    "{passes} solver passes a step (sub-steps times passes) is over {MAX_PASSES_PER_STEP}"
+                    "{passes} solver passes a step (sub-steps times passes, the first step's settle solve included) is over {MAX_PASSES_PER_STEP}"
                 ),
             ));
         }
