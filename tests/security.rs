@@ -74,6 +74,11 @@ fn hostile_inputs(long_name: &str) -> Vec<(Vec<u8>, String)> {
             r#"{"do":"spawn_minion","at":[50,50]}"#.into(),
             "limits.bodies",
         ),
+        // A name that would drive a terminal or forge a log line: echoed escaped.
+        (
+            r#"{"do":"clear","group":"\u001b[2J\r\nINFO forged"}"#.into(),
+            "u{1b}",
+        ),
         // Names and commands too long to echo.
         (
             format!(r#"{{"do":"clear","group":"{long_name}"}}"#),

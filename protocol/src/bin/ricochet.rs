@@ -146,7 +146,9 @@ fn run(cli: Cli) -> Result<i32> {
         Cmd::Worlds => {
             let session = network.open()?;
             for w in list_worlds(&session, timeout)? {
-                println!("{w}");
+                // A world's name is what a peer chose: printed with control characters
+                // escaped, so it cannot drive the terminal.
+                println!("{}", ricochet_engine::world::short(&w, 256));
             }
             Ok(0)
         }

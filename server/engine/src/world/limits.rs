@@ -288,9 +288,27 @@ impl World {
     }
 }
 
-/// `text` cut to at most `max` bytes (on a character boundary), with "…" when cut: how
-/// refused input is echoed in replies, events and logs.
+/// `text` with its control characters escaped (ESC as `\u{1b}`, a newline as `\n`), cut
+/// to at most `max` bytes (on a character boundary), with "…" when cut: how refused
+/// input and names are echoed in replies, events and logs, so none can move a
+/// terminal's cursor or forge a log line.
 pub fn short(text: &str, max: usize) -> String {
+    let escaped;
+    let text = if text.chars().any(char::is_control) {
+        escaped = text
+            .chars()
+            .map(|c| {
+                if c.is_control() {
+                    c.escape_default().to_string()
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect::<String>();
+        escaped.as_str()
+    } else {
+        text
+    };
     if text.len() <= max {
         return text.to_string();
     }
@@ -337,5 +355,11 @@ mod tests {
         assert_eq!(short("abc", 5), "abc");
         assert_eq!(short("abcdef", 3), "abc…");
         assert_eq!(short("ééé", 3), "é…");
+    }
+
+    #[test]
+    fn short_escapes_control_characters() {
+        assert_eq!(short("a\x1b[2Jb\r\nc", 64), "a\\u{1b}[2Jb\\r\\nc");
+        assert!(!short("\x1b]0;owned\x07", 64).chars().any(char::is_control));
     }
 }
