@@ -187,6 +187,8 @@ pub struct Resumed {
 struct Lines<R> {
     reader: R,
     raw: String,
+    /// The line's bytes as read (a torn line may end inside a character).
+    bytes: Vec<u8>,
     /// Lines read, counting the first line read as `first`.
     n: usize,
     /// Bytes of the whole lines read.
@@ -198,6 +200,7 @@ impl<R: BufRead> Lines<R> {
         Lines {
             reader,
             raw: String::new(),
+            bytes: Vec::new(),
             n: first - 1,
             whole: 0,
         }
@@ -206,18 +209,28 @@ impl<R: BufRead> Lines<R> {
     /// The next line, without its newline, and its number; `None` at the end, and for a
     /// last line the kill cut short (no newline: it was never flushed whole, so nothing it
     /// held was answered).
+    ///
+    /// The bytes are read before they are taken as text, so a line torn inside a
+    /// character is torn, like any other; a whole line that is not UTF-8 is refused,
+    /// naming it.
     fn next(&mut self, path: &Path) -> Result<Option<(usize, &str)>> {
-        self.raw.clear();
+        self.bytes.clear();
         let got = self
             .reader
-            .read_line(&mut self.raw)
+            .read_until(b'\n', &mut self.bytes)
             .with_context(|| format!("cannot read the journal {}", path.display()))?;
-        if got == 0 || !self.raw.ends_with('\n') {
+        if got == 0 || self.bytes.last() != Some(&b'\n') {
             return Ok(None);
         }
         self.n += 1;
         self.whole += got as u64;
-        self.raw.pop();
+        self.bytes.pop();
+        self.raw.clear();
+        self.raw.push_str(
+            std::str::from_utf8(&self.bytes).map_err(|_| {
+                anyhow!("journal {} line {}: not UTF-8 text", path.display(), self.n)
+            })?,
+        );
         Ok(Some((self.n, &self.raw)))
     }
 }
@@ -249,6 +262,17 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     }
     let limits: Limits =
         toml::from_str(&header.limits).with_context(|| format!("{}: limits", at(1)))?;
+    // A journal is a file like any other: its limits are checked as an operator's, and
+    // never raise this server's own (`--limit`).
+    limits
+        .validate()
+        .with_context(|| format!("{}: limits", at(1)))?;
+    if let Some((name, theirs, ours)) = limits.above(&opts.limits) {
+        bail!(
+            "{}: the journal's limit {name} = {theirs} is above this server's {ours}; resume with --limit {name}={theirs} to allow it",
+            at(1)
+        );
+    }
     let mut opts = opts.clone();
     opts.overrides = header.overrides.clone();
     opts.limits = limits;
@@ -479,6 +503,53 @@ mod tests {
         // Resumed once more, the journal is whole: the same frame again.
         drop(resumed);
         assert_eq!(resume(&path, &options()).unwrap().host.world.frame(), frame);
+    }
+
+    /// The refusal of a journal that must not resume.
+    fn refusal(path: &Path, opts: &HostOptions) -> String {
+        match resume(path, opts) {
+            Ok(_) => panic!("{} resumed", path.display()),
+            Err(e) => format!("{e:#}"),
+        }
+    }
+
+    #[test]
+    fn a_last_line_torn_inside_a_character_is_torn_like_any_other() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let frame = journal_of(&path, 5);
+        // The first byte of a two-byte character, then the kill.
+        append(&path, b"{\"at\":\"\xc3");
+        assert_eq!(resume(&path, &options()).unwrap().host.world.frame(), frame);
+        // A whole line that is not text is refused, naming its line.
+        append(&path, b"\xff\xfe\n");
+        let e = refusal(&path, &options());
+        assert!(e.contains("line 7") && e.contains("not UTF-8"), "{e}");
+    }
+
+    #[test]
+    fn a_journals_limits_never_raise_the_servers_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        journal_of(&path, 2);
+        let text = std::fs::read_to_string(&path).unwrap();
+        // The operator resumes under --limit bodies=60: a journal written under the
+        // default (100 000 bodies) would raise it, and is refused with what to do.
+        let strict = HostOptions {
+            limits: Limits::default().with(&["bodies=60".into()]).unwrap(),
+            ..options()
+        };
+        let e = refusal(&path, &strict);
+        assert!(
+            e.contains("bodies") && e.contains("--limit bodies=100000"),
+            "{e}"
+        );
+        // A header whose work limit is not a number is refused, not read as no limit.
+        let nan = text.replacen("step_work = 100000000.0", "step_work = nan", 1);
+        assert_ne!(nan, text, "the header spells step_work as expected");
+        std::fs::write(&path, nan).unwrap();
+        let e = refusal(&path, &options());
+        assert!(e.contains("step_work"), "{e}");
     }
 
     #[test]
