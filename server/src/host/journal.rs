@@ -186,7 +186,6 @@ pub struct Resumed {
 /// world it builds is kept), numbering lines and counting the bytes of whole lines.
 struct Lines<R> {
     reader: R,
-    raw: String,
     /// The line's bytes as read (a torn line may end inside a character).
     bytes: Vec<u8>,
     /// Lines read, counting the first line read as `first`.
@@ -199,7 +198,6 @@ impl<R: BufRead> Lines<R> {
     fn new(reader: R, first: usize) -> Self {
         Lines {
             reader,
-            raw: String::new(),
             bytes: Vec::new(),
             n: first - 1,
             whole: 0,
@@ -225,13 +223,9 @@ impl<R: BufRead> Lines<R> {
         self.n += 1;
         self.whole += got as u64;
         self.bytes.pop();
-        self.raw.clear();
-        self.raw.push_str(
-            std::str::from_utf8(&self.bytes).map_err(|_| {
-                anyhow!("journal {} line {}: not UTF-8 text", path.display(), self.n)
-            })?,
-        );
-        Ok(Some((self.n, &self.raw)))
+        let line = std::str::from_utf8(&self.bytes)
+            .map_err(|_| anyhow!("journal {} line {}: not UTF-8 text", path.display(), self.n))?;
+        Ok(Some((self.n, line)))
     }
 }
 

@@ -98,12 +98,13 @@ pub struct Row {
     pub verdict: Vec<Judgement>,
 }
 
-/// The suite's scenes in `dir`, by name.
-pub fn scenes(dir: &Path) -> Result<Vec<PathBuf>> {
+/// The suite's scenes in `dir` (those whose path contains `only`, if given), by name.
+pub fn scenes(dir: &Path, only: Option<&str>) -> Result<Vec<PathBuf>> {
     let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
         .with_context(|| format!("cannot read {}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .filter(|p| only.is_none_or(|o| p.to_string_lossy().contains(o)))
         .collect();
     out.sort();
     Ok(out)
@@ -127,16 +128,7 @@ pub struct Targeted {
 /// start-up without a cache), then runs the scene under it against its criteria.
 pub fn under_target(path: &Path, target: f64) -> Result<Targeted> {
     use crate::report::scene_tradeoff::Subject;
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let subject = Subject {
-        path: path.to_path_buf(),
-        text,
-        steps: crate::accuracy::MEASURE_STEPS,
-        inputs: Vec::new(),
-        base: Vec::new(),
-        closed_form: None,
-    };
+    let subject = Subject::read(path, crate::accuracy::MEASURE_STEPS, Vec::new())?;
     let started = Instant::now();
     let pick = crate::accuracy::pick(&subject, target, None)?;
     let measure_s = started.elapsed().as_secs_f64();
@@ -161,10 +153,7 @@ pub fn run_targeted(
     target: f64,
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<Targeted>> {
-    let scenes: Vec<PathBuf> = scenes(dir)?
-        .into_iter()
-        .filter(|p| only.is_none_or(|o| p.to_string_lossy().contains(o)))
-        .collect();
+    let scenes = scenes(dir, only)?;
     progress.set_length(progress.length().unwrap_or(0) + scenes.len() as u64);
     let mut out = Vec::new();
     for path in &scenes {
@@ -294,10 +283,7 @@ pub fn run_all(
     only: Option<&str>,
     progress: &indicatif::ProgressBar,
 ) -> Result<Vec<Row>> {
-    let scenes: Vec<PathBuf> = scenes(dir)?
-        .into_iter()
-        .filter(|p| only.is_none_or(|o| p.to_string_lossy().contains(o)))
-        .collect();
+    let scenes = scenes(dir, only)?;
     progress.set_length((scenes.len() * SETTINGS.len()) as u64);
     let mut rows = Vec::new();
     for setting in SETTINGS {
