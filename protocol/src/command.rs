@@ -12,8 +12,9 @@ use serde::{Deserialize, Serialize};
 pub use ricochet_engine::action::{Action, Direction, MinionShape, Point};
 
 /// Controls of the server's clock and world, besides the world actions.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames)]
 #[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
+#[strum(serialize_all = "snake_case")]
 pub enum ServerCommand {
     /// Stops stepping; commands are still applied.
     Pause,
@@ -44,8 +45,9 @@ fn one_step() -> u32 {
     1
 }
 
-/// The names of the server commands, to tell them from world actions.
-pub const SERVER_COMMANDS: &[&str] = &["pause", "resume", "step", "reset", "load"];
+/// The names of the server commands (the variants of [`ServerCommand`]), to tell them
+/// from world actions.
+pub const SERVER_COMMANDS: &[&str] = <ServerCommand as strum::VariantNames>::VARIANTS;
 
 /// Any command a client can send.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -315,6 +317,55 @@ pub fn parse_input_log(text: &str) -> Result<Vec<TimedAction>, String> {
     Ok(out)
 }
 
+/// An input log played into a world as it steps: before each step, the actions due (those
+/// of frames up to the world's), in log order. `simulate --inputs`, the trade-off runs and
+/// the accuracy measure all step this way, so the same log means the same frames.
+pub struct Replay<'a> {
+    next: std::iter::Peekable<std::slice::Iter<'a, TimedAction>>,
+}
+
+/// What one step of a [`Replay`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Replayed {
+    /// Actions that were due before the step (applied or refused).
+    pub due: usize,
+    /// Of them, those the world refused.
+    pub refused: usize,
+    /// The time of the step alone, the actions' not included.
+    pub step_time: std::time::Duration,
+}
+
+impl<'a> Replay<'a> {
+    pub fn new(log: &'a [TimedAction]) -> Replay<'a> {
+        Replay {
+            next: log.iter().peekable(),
+        }
+    }
+
+    /// Applies the actions due to `world`, handing each with its outcome to `seen`, then
+    /// steps it once.
+    pub fn step(
+        &mut self,
+        world: &mut ricochet_engine::world::World,
+        mut seen: impl FnMut(
+            &TimedAction,
+            &Result<ricochet_engine::action::ActionOutcome, ricochet_engine::action::ActionError>,
+        ),
+    ) -> Replayed {
+        let mut done = Replayed::default();
+        while let Some(input) = self.next.next_if(|a| a.frame <= world.frame()) {
+            let outcome = world.apply(&input.action);
+            done.due += 1;
+            done.refused += usize::from(outcome.is_err());
+            seen(input, &outcome);
+        }
+        let t = std::time::Instant::now();
+        world.step();
+        done.step_time = t.elapsed();
+        done
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -366,6 +417,54 @@ mod tests {
             at: [1.0, 2.0],
         });
         assert_eq!(Command::parse(c.to_json().as_bytes()), Ok(c));
+    }
+
+    #[test]
+    fn every_listed_name_is_a_command_the_parser_knows() {
+        // The lists come from the types: each name is a `do` the parser routes, none is
+        // unknown, and a name that is not a command is refused listing them all.
+        for name in SERVER_COMMANDS.iter().chain(Action::NAMES) {
+            // Missing arguments or not, the name itself is known.
+            if let Err(e) = Command::parse(format!(r#"{{"do":"{name}"}}"#).as_bytes()) {
+                assert!(!e.contains("unknown command"), "{name}: {e}");
+            }
+        }
+        assert_eq!(
+            SERVER_COMMANDS,
+            ["pause", "resume", "step", "reset", "load"]
+        );
+        assert!(Action::NAMES.contains(&"spawn_particles") && Action::NAMES.contains(&"set"));
+        let e = Command::parse(br#"{"do":"fly"}"#).unwrap_err();
+        for name in SERVER_COMMANDS.iter().chain(Action::NAMES) {
+            assert!(e.contains(name), "{name} not listed: {e}");
+        }
+    }
+
+    #[test]
+    fn a_replay_applies_what_is_due_before_each_step() {
+        let mut world = ricochet_engine::scene::parse(
+            include_str!("../../assets/scenes/particles.toml"),
+            std::path::Path::new("particles.toml"),
+            &[],
+        )
+        .unwrap();
+        let log = parse_input_log(
+            r#"{"frame":0,"action":{"do":"spawn_particles","preset":"fire","at":[50,50],"count":3}}
+{"frame":2,"action":{"do":"spawn_particles","preset":"nope","at":[50,50]}}
+{"frame":2,"action":{"do":"deselect"}}"#,
+        )
+        .unwrap();
+        let mut replay = Replay::new(&log);
+        let mut seen = Vec::new();
+        let mut steps = Vec::new();
+        for _ in 0..4 {
+            let frame = world.frame();
+            let done = replay.step(&mut world, |a, r| seen.push((frame, a.frame, r.is_ok())));
+            steps.push((done.due, done.refused));
+        }
+        assert_eq!(steps, [(1, 0), (0, 0), (2, 1), (0, 0)]);
+        assert_eq!(seen, [(0, 0, true), (2, 2, false), (2, 2, true)]);
+        assert_eq!(world.frame(), 4);
     }
 
     #[test]

@@ -306,6 +306,29 @@ pub fn for_scene(
     pick(&subject, target, cache.as_deref()).map(Some)
 }
 
+/// [`for_scene`], the picked setting's overrides then put before `overrides` (the user's
+/// `--set` win): the overrides a server or `simulate` runs the scene under. Returns the
+/// pick, to say what was picked and why.
+pub fn apply_to(
+    path: &Path,
+    text: &str,
+    overrides: &mut Vec<String>,
+    flag: Option<f64>,
+    cache: Option<&Path>,
+) -> Result<Option<Pick>> {
+    let picked = for_scene(path, text, overrides, flag, cache)?;
+    if let Some(pick) = &picked {
+        *overrides = pick
+            .candidate
+            .overrides
+            .iter()
+            .chain(overrides.iter())
+            .cloned()
+            .collect();
+    }
+    Ok(picked)
+}
+
 /// Measures `subject` (or reads its cached measure from `cache`) and picks for `target`.
 pub fn pick(subject: &Subject, target: f64, cache: Option<&Path>) -> Result<Pick> {
     let file = cache.map(|dir| cache_path(dir, subject));

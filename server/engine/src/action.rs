@@ -26,8 +26,9 @@ pub enum MinionShape {
     Rect,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames)]
 #[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
+#[strum(serialize_all = "snake_case")]
 pub enum Action {
     /// Starts holding a direction of the hero's controls.
     Press { dir: Direction },
@@ -83,22 +84,8 @@ fn one() -> u32 {
 }
 
 impl Action {
-    /// The names of every action, as the `do` field spells them.
-    pub const NAMES: &'static [&'static str] = &[
-        "press",
-        "release",
-        "fire_dye_pack",
-        "spawn_minion",
-        "spawn_dumb_minion",
-        "select",
-        "drag",
-        "deselect",
-        "agitate",
-        "clear",
-        "spawn_particles",
-        "start_emitter",
-        "set",
-    ];
+    /// The names of every action, as the `do` field spells them (its variants').
+    pub const NAMES: &'static [&'static str] = <Action as strum::VariantNames>::VARIANTS;
 }
 
 /// What an applied action created or chose, by body id.

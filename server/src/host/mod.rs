@@ -191,23 +191,16 @@ pub fn run(opts: HostOptions) -> Result<()> {
             let text = std::fs::read_to_string(scene)
                 .with_context(|| format!("cannot read scene {}", scene.display()))?;
             let mut opts = opts.clone();
-            let picked = crate::accuracy::for_scene(
+            // The pick's overrides are journaled with the rest: a resume needs no measure.
+            let picked = crate::accuracy::apply_to(
                 scene,
                 &text,
-                &opts.overrides,
+                &mut opts.overrides,
                 opts.accuracy,
                 opts.accuracy_cache.as_deref(),
             )?;
             if let Some(pick) = &picked {
                 tracing::info!("{}", pick.reason());
-                // Journaled with the rest of the overrides: a resume needs no measure.
-                opts.overrides = pick
-                    .candidate
-                    .overrides
-                    .iter()
-                    .chain(&opts.overrides)
-                    .cloned()
-                    .collect();
             }
             let mut host = Hosted::load(text, scene.clone(), &opts)?;
             host.accuracy = picked.map(|p| p.reason());

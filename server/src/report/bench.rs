@@ -17,7 +17,8 @@ use serde::Serialize;
 use ricochet_engine::scene;
 use ricochet_engine::world::World;
 
-use super::percentile;
+use super::table::Table;
+use super::{percentile, splice};
 
 /// What a case reports besides time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -317,6 +318,65 @@ pub fn measure(
     })
 }
 
+/// Measures every case whose scene contains `only` under each of its settings (the
+/// pyramid under `set` alone when given), ticking `progress` once a setting.
+pub fn run_all(
+    scenes: &Path,
+    steps: u64,
+    only: Option<&str>,
+    set: Vec<String>,
+    progress: &indicatif::ProgressBar,
+) -> Result<Vec<Row>> {
+    let pyramid = (!set.is_empty()).then_some(set);
+    let cases: Vec<Case> = cases(pyramid, steps)
+        .into_iter()
+        .filter(|c| only.is_none_or(|o| c.scene.contains(o)))
+        .collect();
+    progress.set_length(cases.iter().map(|c| c.settings.len() as u64).sum());
+    let mut rows = Vec::new();
+    for case in &cases {
+        for (label, overrides) in &case.settings {
+            progress.set_message(format!("{} / {label}", case.scene));
+            // The chapter's relaxation is quadratic in the pile: a few steps show its cost.
+            let relaxation = overrides.iter().any(|o| o == "solver=relaxation");
+            let n = if relaxation {
+                case.steps.min(20)
+            } else {
+                case.steps
+            };
+            rows.push(measure(scenes, case, label, overrides, n)?);
+            progress.inc(1);
+        }
+    }
+    Ok(rows)
+}
+
+/// The report's tables: every row, then the speed-ups on 2 threads if any were measured.
+pub fn tables(rows: &[Row]) -> String {
+    let mut out = to_markdown(rows);
+    let speedups = speedups(rows);
+    if !speedups.is_empty() {
+        out += &format!("\nSpeed-up on 2 threads (same run, same bits):\n\n{speedups}");
+    }
+    out
+}
+
+/// Writes `dir/bench.csv` and the tables into `dir/README.md` (between its `bench`
+/// markers), saying they were measured by `command`.
+pub fn write(dir: &Path, rows: &[Row], command: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    std::fs::write(dir.join("bench.csv"), to_csv(rows)?)?;
+    splice(
+        &dir.join("README.md"),
+        "bench",
+        &format!(
+            "Measured by `{command}` on {}.\n\n{}",
+            super::machine(),
+            tables(rows)
+        ),
+    )
+}
+
 /// The rows as CSV.
 pub fn to_csv(rows: &[Row]) -> Result<String> {
     super::to_csv(rows)
@@ -326,34 +386,44 @@ pub fn to_csv(rows: &[Row]) -> Result<String> {
 pub fn to_markdown(rows: &[Row]) -> String {
     let opt =
         |v: Option<f64>, digits: usize| v.map(|v| format!("{v:.digits$}")).unwrap_or_default();
-    let mut out = String::from(
-        "| scene | setting | bodies | particles | steps | mean ms/step (whole run) | median (p10-p90) | worst drift (body sizes) | drift at the end | ns per particle-step |\n|---|---|---|---|---|---|---|---|---|---|\n",
-    );
+    let mut t = Table::new([
+        "scene",
+        "setting",
+        "bodies",
+        "particles",
+        "steps",
+        "mean ms/step (whole run)",
+        "median (p10-p90)",
+        "worst drift (body sizes)",
+        "drift at the end",
+        "ns per particle-step",
+    ]);
     for r in rows {
-        out += &format!(
-            "| {} | {} | {} | {} | {} | {:.4} | {:.4} ({:.4}-{:.4}) | {}{} | {} | {} |\n",
-            r.scene,
-            r.setting,
-            r.bodies,
-            r.particles,
-            r.steps,
-            r.ms_mean,
-            r.ms_median,
-            r.ms_p10,
-            r.ms_p90,
-            opt(r.worst_drift, 4),
-            if r.nan { " NaN" } else { "" },
+        t.row([
+            r.scene.clone(),
+            r.setting.clone(),
+            r.bodies.to_string(),
+            r.particles.to_string(),
+            r.steps.to_string(),
+            format!("{:.4}", r.ms_mean),
+            format!("{:.4} ({:.4}-{:.4})", r.ms_median, r.ms_p10, r.ms_p90),
+            opt(r.worst_drift, 4) + if r.nan { " NaN" } else { "" },
             opt(r.final_drift, 4),
             opt(r.ns_per_particle, 2),
-        );
+        ]);
     }
-    out
+    t.to_string()
 }
 
 /// The speed-up of each scene measured both as shipped (one thread) and with
 /// `threads=2` alone, as a Markdown table (empty when none was).
 pub fn speedups(rows: &[Row]) -> String {
-    let mut out = String::new();
+    let mut t = Table::new([
+        "scene",
+        "one thread, median ms/step",
+        "2 threads",
+        "speed-up",
+    ]);
     for two in rows.iter().filter(|r| r.overrides == "threads=2") {
         let Some(one) = rows
             .iter()
@@ -361,18 +431,18 @@ pub fn speedups(rows: &[Row]) -> String {
         else {
             continue;
         };
-        if out.is_empty() {
-            out += "| scene | one thread, median ms/step | 2 threads | speed-up |\n|---|---|---|---|\n";
-        }
-        out += &format!(
-            "| {} | {:.4} | {:.4} | {:.2}x |\n",
-            two.scene,
-            one.ms_median,
-            two.ms_median,
-            one.ms_median / two.ms_median
-        );
+        t.row([
+            two.scene.clone(),
+            format!("{:.4}", one.ms_median),
+            format!("{:.4}", two.ms_median),
+            format!("{:.2}x", one.ms_median / two.ms_median),
+        ]);
     }
-    out
+    if t.is_empty() {
+        String::new()
+    } else {
+        t.to_string()
+    }
 }
 
 #[cfg(test)]

@@ -7,13 +7,16 @@
 //! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
 //! - [`suite`]: the suite of scene kinds under named settings, against their criteria;
 //! - [`chart`]: the trade-off charts' font and their time-against-error panel;
-//! - [`splice`]: how a run writes its table into a hand-written page.
+//! - [`table`]: the one Markdown table writer;
+//! - [`splice`]: how a run writes its table into a hand-written page;
+//! - [`command_line`]: the command a report was measured by, for its page.
 
 pub mod bench;
 pub mod chart;
 pub mod scene_tradeoff;
 pub mod soak;
 pub mod suite;
+pub mod table;
 pub mod tradeoff;
 
 use std::path::Path;
@@ -52,6 +55,15 @@ pub fn splice(path: &Path, name: &str, content: &str) -> Result<()> {
     anyhow::ensure!(a < b, "{}: {end} comes before {begin}", path.display());
     let spliced = format!("{}{begin}\n{content}{}", &text[..a], &text[b..]);
     std::fs::write(path, spliced).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The command this process was started with, as `ricochet-server ARGS...`: the command
+/// a report says it was measured by.
+pub fn command_line() -> String {
+    std::iter::once("ricochet-server".to_string())
+        .chain(std::env::args().skip(1))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// The machine the figures were taken on, in one line.

@@ -16,6 +16,7 @@ use ricochet_engine::criteria::{Judgement, Monitor};
 use ricochet_engine::scene;
 
 use super::percentile;
+use super::table::Table;
 
 /// A setting measured on every scene: a label and `[world]` overrides.
 pub struct Setting {
@@ -169,14 +170,17 @@ pub fn targeted_markdown(runs: &[Targeted]) -> String {
     let Some(first) = runs.first() else {
         return String::new();
     };
-    let mut out = format!(
-        "Every scene under `accuracy = {}` (picked by a fresh measure of {} steps, as a server without a cache does at start-up; then run for the steps its criteria state):
-
-| scene | bodies | measure s | setting picked | position error judged over | criteria in the measure | holds over the whole run | mean ms/step | median |
-|---|---|---|---|---|---|---|---|---|
-",
-        first.pick.target, first.pick.steps
-    );
+    let mut table = Table::new([
+        "scene",
+        "bodies",
+        "measure s",
+        "setting picked",
+        "position error judged over",
+        "criteria in the measure",
+        "holds over the whole run",
+        "mean ms/step",
+        "median",
+    ]);
     for t in runs {
         let p = &t.pick;
         let window = match p.error() {
@@ -199,13 +203,15 @@ pub fn targeted_markdown(runs: &[Targeted]) -> String {
         } else {
             format!("**fails {}**", p.candidate.fails.join(", "))
         };
-        out += &format!(
-            "| {} | {} | {:.1} | {}{} | {} | {} | {} | {:.3} | {:.3} |\n",
-            t.row.scene,
-            t.row.bodies,
-            t.measure_s,
-            p.candidate.name,
-            if p.met { "" } else { " (target not met)" },
+        table.row([
+            t.row.scene.clone(),
+            t.row.bodies.to_string(),
+            format!("{:.1}", t.measure_s),
+            format!(
+                "{}{}",
+                p.candidate.name,
+                if p.met { "" } else { " (target not met)" }
+            ),
             window,
             held,
             if t.row.holds {
@@ -213,11 +219,14 @@ pub fn targeted_markdown(runs: &[Targeted]) -> String {
             } else {
                 format!("**no: {}**", t.row.criteria)
             },
-            t.row.ms_mean,
-            t.row.ms_median,
-        );
+            format!("{:.3}", t.row.ms_mean),
+            format!("{:.3}", t.row.ms_median),
+        ]);
     }
-    out
+    format!(
+        "Every scene under `accuracy = {}` (picked by a fresh measure of {} steps, as a server without a cache does at start-up; then run for the steps its criteria state):\n\n{table}",
+        first.pick.target, first.pick.steps
+    )
 }
 
 /// Runs `path` under `overrides` for the steps its criteria ask, timing every step.
@@ -307,12 +316,16 @@ pub fn write(dir: &Path, rows: &[Row], targeted: &[Targeted], command: &str) -> 
         &dir.join("README.md"),
         "suite",
         &format!(
-            "Measured by `{command}` on {}.\n\n{}\n{}",
+            "Measured by `{command}` on {}.\n\n{}",
             super::machine(),
-            to_markdown(rows),
-            targeted_markdown(targeted)
+            tables(rows, targeted)
         ),
     )
+}
+
+/// The report's tables: every scene under every setting, then under the accuracy target.
+pub fn tables(rows: &[Row], targeted: &[Targeted]) -> String {
+    format!("{}\n{}", to_markdown(rows), targeted_markdown(targeted))
 }
 
 /// The rows as CSV.
@@ -326,9 +339,15 @@ pub fn to_markdown(rows: &[Row]) -> String {
     let Some(first) = rows.first().map(|r| r.setting.clone()) else {
         return String::new();
     };
-    let mut out = format!(
-        "Every scene under {first}:\n\n| scene | bodies | steps | mean ms/step (whole run) | median | criteria (figure / limit) | holds |\n|---|---|---|---|---|---|---|\n"
-    );
+    let mut scenes = Table::new([
+        "scene",
+        "bodies",
+        "steps",
+        "mean ms/step (whole run)",
+        "median",
+        "criteria (figure / limit)",
+        "holds",
+    ]);
     for r in rows.iter().filter(|r| r.setting == first) {
         let criteria: Vec<String> = r
             .verdict
@@ -342,18 +361,23 @@ pub fn to_markdown(rows: &[Row]) -> String {
                 }
             })
             .collect();
-        out += &format!(
-            "| {} | {} | {} | {:.3} | {:.3} | {} | {} |\n",
-            r.scene,
-            r.bodies,
-            r.steps,
-            r.ms_mean,
-            r.ms_median,
+        scenes.row([
+            r.scene.clone(),
+            r.bodies.to_string(),
+            r.steps.to_string(),
+            format!("{:.3}", r.ms_mean),
+            format!("{:.3}", r.ms_median),
             criteria.join(", "),
-            if r.holds { "yes" } else { "**no**" }
-        );
+            (if r.holds { "yes" } else { "**no**" }).to_string(),
+        ]);
     }
-    out += "\nEvery setting (the criteria a scene fails, in bold above for the first):\n\n| setting | overrides | scenes held | fails | sum of mean ms/step |\n|---|---|---|---|---|\n";
+    let mut table = Table::new([
+        "setting",
+        "overrides",
+        "scenes held",
+        "fails",
+        "sum of mean ms/step",
+    ]);
     let mut settings: Vec<&str> = Vec::new();
     for r in rows {
         if !settings.contains(&r.setting.as_str()) {
@@ -377,18 +401,21 @@ pub fn to_markdown(rows: &[Row]) -> String {
             })
             .collect();
         let total: f64 = mine.iter().map(|r| r.ms_mean).sum();
-        out += &format!(
-            "| {s} | `{}` | {held} of {} | {} | {total:.2} |\n",
-            mine[0].overrides,
-            mine.len(),
+        table.row([
+            s.to_string(),
+            format!("`{}`", mine[0].overrides),
+            format!("{held} of {}", mine.len()),
             if fails.is_empty() {
                 "none".to_string()
             } else {
                 fails.join("; ")
-            }
-        );
+            },
+            format!("{total:.2}"),
+        ]);
     }
-    out
+    format!(
+        "Every scene under {first}:\n\n{scenes}\nEvery setting (the criteria a scene fails, in bold above for the first):\n\n{table}"
+    )
 }
 
 #[cfg(test)]

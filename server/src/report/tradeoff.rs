@@ -4,12 +4,13 @@
 //! setting the median time per step and what it buys: the error against the closed form
 //! where the scene has one, against the converged reference otherwise.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 
 use super::chart::{panel, register_font, Point};
 use super::scene_tradeoff::{judged_error, measure, ClosedForm, Options, Report, Subject};
+use super::table::Table;
 
 /// One cell of the report: a scene under a setting.
 #[derive(Clone, Debug)]
@@ -134,51 +135,127 @@ pub fn run_all(progress: &indicatif::ProgressBar) -> Result<(Vec<Cell>, Referenc
     Ok((all, references))
 }
 
-/// The cells as CSV.
-pub fn to_csv(cells: &[Cell]) -> String {
-    let mut out = String::from(
-        "scene,setting,ms_per_step,ms_median,error,error_measure,reference_error,deepest_penetration,energy_drift,nan\n",
-    );
-    for c in cells {
-        out += &format!(
-            "{},\"{}\",{:.6},{:.6},{:.6e},\"{}\",{:.6e},{:.6e},{:.6e},{}\n",
-            c.scene,
-            c.setting,
-            c.ms_per_step,
-            c.ms_median,
-            c.error,
-            c.error_name,
-            c.reference_error,
-            c.deepest_penetration,
-            c.energy_drift,
-            c.nan
-        );
+/// The cells as CSV, a line each.
+pub fn to_csv(cells: &[Cell]) -> Result<String> {
+    #[derive(serde::Serialize)]
+    struct Line<'a> {
+        scene: &'a str,
+        setting: &'a str,
+        ms_per_step: f64,
+        ms_median: f64,
+        error: f64,
+        error_measure: &'a str,
+        reference_error: f64,
+        deepest_penetration: f64,
+        energy_drift: f64,
+        nan: bool,
+        on_front: bool,
     }
-    out
+    let lines: Vec<Line> = cells
+        .iter()
+        .map(|c| Line {
+            scene: c.scene,
+            setting: &c.setting,
+            ms_per_step: c.ms_per_step,
+            ms_median: c.ms_median,
+            error: c.error,
+            error_measure: c.error_name,
+            reference_error: c.reference_error,
+            deepest_penetration: c.deepest_penetration,
+            energy_drift: c.energy_drift,
+            nan: c.nan,
+            on_front: on_front(c, cells),
+        })
+        .collect();
+    super::to_csv(&lines)
 }
 
 /// The cells as a Markdown table, the front marked.
 pub fn to_markdown(cells: &[Cell]) -> String {
-    let mut out = String::from(
-        "| scene | setting | mean ms/step (whole run) | median | error | error measure | against the reference (units) | deepest penetration (units) | worst energy change | front |\n|---|---|---|---|---|---|---|---|---|---|\n",
-    );
+    let mut t = Table::new([
+        "scene",
+        "setting",
+        "mean ms/step (whole run)",
+        "median",
+        "error",
+        "error measure",
+        "against the reference (units)",
+        "deepest penetration (units)",
+        "worst energy change",
+        "front",
+    ]);
     for c in cells {
-        out += &format!(
-            "| {} | {} | {:.5} | {:.5} | {:.3e}{} | {} | {:.2e} | {:.2e} | {:.2e} | {} |\n",
-            c.scene,
-            c.setting,
-            c.ms_per_step,
-            c.ms_median,
-            c.error,
-            if c.nan { " NaN" } else { "" },
-            c.error_name,
-            c.reference_error,
-            c.deepest_penetration,
-            c.energy_drift,
-            if on_front(c, cells) { "yes" } else { "" },
-        );
+        t.row([
+            c.scene.to_string(),
+            c.setting.clone(),
+            format!("{:.5}", c.ms_per_step),
+            format!("{:.5}", c.ms_median),
+            format!("{:.3e}{}", c.error, if c.nan { " NaN" } else { "" }),
+            c.error_name.to_string(),
+            format!("{:.2e}", c.reference_error),
+            format!("{:.2e}", c.deepest_penetration),
+            format!("{:.2e}", c.energy_drift),
+            (if on_front(c, cells) { "yes" } else { "" }).to_string(),
+        ]);
     }
-    out
+    t.to_string()
+}
+
+/// The cells in one line each for the terminal, the front marked.
+pub fn to_text(cells: &[Cell]) -> String {
+    cells
+        .iter()
+        .map(|c| {
+            format!(
+                "{:<11} {:<34} {:>9.5} ms  error {:>10.3e}  reference {:>9.2e}  energy {:>9.2e}{}{}\n",
+                c.scene,
+                c.setting,
+                c.ms_per_step,
+                c.error,
+                c.reference_error,
+                c.energy_drift,
+                if c.nan { "  NaN" } else { "" },
+                if on_front(c, cells) { "  front" } else { "" }
+            )
+        })
+        .collect()
+}
+
+/// Writes `out/tradeoff.csv`, `out/tradeoff.png` and, if `out/README.md` exists, the
+/// table between its `tradeoff` markers, saying it was measured by `command`. Returns
+/// the files written.
+pub fn write(
+    out: &Path,
+    cells: &[Cell],
+    references: &[(&str, String)],
+    command: &str,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let (csv, png, readme) = (
+        out.join("tradeoff.csv"),
+        out.join("tradeoff.png"),
+        out.join("README.md"),
+    );
+    std::fs::write(&csv, to_csv(cells)?)?;
+    chart(cells, &png)?;
+    let mut written = vec![csv, png];
+    if readme.exists() {
+        let references: String = references
+            .iter()
+            .map(|(scene, line)| format!("- {scene}: {line}\n"))
+            .collect();
+        super::splice(
+            &readme,
+            "tradeoff",
+            &format!(
+                "Measured by `{command}` on {}.\n\n{references}\n{}",
+                super::machine(),
+                to_markdown(cells)
+            ),
+        )?;
+        written.push(readme);
+    }
+    Ok(written)
 }
 
 /// Whether a cell is on its scene's front: no other setting is both faster and more

@@ -82,21 +82,17 @@ impl LimitError {
     }
 }
 
-/// The names of the limits, as `[limits]` and `--limit` spell them.
-pub const LIMIT_NAMES: &[&str] = &[
-    "bodies",
-    "particles",
-    "emitters",
-    "groups",
-    "interactions",
-    "presets",
-    "rand_terms",
-    "particles_per_action",
-    "step_work",
-    "command_bytes",
-];
-
 impl Limits {
+    /// The names of the limits, as `[limits]` and `--limit` spell them: the fields of
+    /// [`Limits`], in alphabetical order.
+    pub fn names() -> Vec<String> {
+        toml::Table::try_from(Limits::default())
+            .expect("limits serialise")
+            .keys()
+            .cloned()
+            .collect()
+    }
+
     /// No limit worth the name: for trusted local measurement (benchmarks, trade-off
     /// reports), never for a world a network peer can reach.
     pub fn unbounded() -> Limits {
@@ -195,11 +191,9 @@ impl Limits {
                 name: short(name, 64),
                 reason,
             };
-            if !LIMIT_NAMES.contains(&name) {
-                return Err(invalid(format!(
-                    "unknown (known: {})",
-                    LIMIT_NAMES.join(", ")
-                )));
+            let names = Limits::names();
+            if !names.iter().any(|n| n == name) {
+                return Err(invalid(format!("unknown (known: {})", names.join(", "))));
             }
             let value: toml::Value = format!("v = {value}")
                 .parse::<toml::Table>()
@@ -339,6 +333,16 @@ mod tests {
             let name = bad.split('=').next().unwrap();
             assert!(e.contains(name), "{bad}: {e}");
         }
+        // The names are the fields: each one can be set, and an unknown one lists them.
+        let names = Limits::names();
+        assert_eq!(names.len(), 10, "{names:?}");
+        for name in &names {
+            Limits::default()
+                .with(&[format!("{name}=7")])
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+        let e = Limits::default().with(&["nope=1".into()]).unwrap_err();
+        assert!(e.to_string().contains(&names.join(", ")), "{e}");
     }
 
     #[test]

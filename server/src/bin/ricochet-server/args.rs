@@ -1,10 +1,14 @@
 //! The command line of `ricochet-server`: its subcommands and their flags.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};
+use ricochet_engine::world::Limits;
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::NetworkArgs;
+use ricochet_server::host::inbox::InboxLimits;
+use ricochet_server::host::HostOptions;
 
 #[derive(Parser)]
 #[command(
@@ -15,6 +19,38 @@ use ricochet_protocol::net::NetworkArgs;
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+}
+
+/// How a world runs, for `run` and `simulate` alike: overrides of its `[world]`, its
+/// limits, and an accuracy target that picks its setting.
+#[derive(Args, Clone, Debug)]
+pub struct WorldFlags {
+    /// Override a `[world]` field, e.g. --set relaxation_iterations=30
+    /// --set gravity=[0,-9.8] --set integrator=explicit. Repeatable.
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Lower or raise a limit of the world, e.g. --limit bodies=5000
+    /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
+    /// `[limits]` may lower these, never raise them. Repeatable.
+    #[arg(long = "limit", value_name = "NAME=VALUE")]
+    pub limit: Vec<String>,
+    /// Run the scene under the cheapest setting whose worst position error meets TOL
+    /// (scene units), measured on the scene at start-up against a converged reference
+    /// (bounded: 120 steps, 20 s for the reference) or read from the cache; overrides the
+    /// scene's `[world] accuracy`. The log says what was picked and why.
+    #[arg(long, value_name = "TOL")]
+    pub accuracy: Option<f64>,
+    /// Where accuracy measures are cached, keyed by the scene's content
+    /// (default: ~/.cache/ricochet/accuracy).
+    #[arg(long, value_name = "DIR")]
+    pub accuracy_cache: Option<PathBuf>,
+}
+
+impl WorldFlags {
+    /// The limits `--limit` asks for, over the defaults.
+    pub fn limits(&self) -> anyhow::Result<Limits> {
+        Ok(Limits::default().with(&self.limit)?)
+    }
 }
 
 #[derive(Args)]
@@ -30,9 +66,8 @@ pub struct RunArgs {
     /// Start paused; `resume` or `step` commands move the world.
     #[arg(long)]
     pub paused: bool,
-    /// Override a `[world]` field (as for simulate). Repeatable.
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
+    #[command(flatten)]
+    pub how: WorldFlags,
     /// A key frame (all dynamic state) every this many frames.
     #[arg(long, default_value_t = 60)]
     pub keyframe_interval: u64,
@@ -48,11 +83,6 @@ pub struct RunArgs {
     /// none: `load` by name is refused).
     #[arg(long, value_name = "DIR")]
     pub scenes: Option<PathBuf>,
-    /// Lower or raise a limit of the hosted worlds, e.g. --limit bodies=5000
-    /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
-    /// `[limits]` may lower these, never raise them. Repeatable.
-    #[arg(long = "limit", value_name = "NAME=VALUE")]
-    pub limit: Vec<String>,
     /// Steps per second of wall time at most: a world with a shorter dt runs slower
     /// than real time instead of flooding its viewers.
     #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
@@ -79,16 +109,6 @@ pub struct RunArgs {
     /// overrides and limits; --scene, --world, --set and --limit are not needed.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
-    /// Run the scene under the cheapest setting whose worst position error meets TOL
-    /// (scene units), measured on the scene at start-up against a converged reference
-    /// (bounded: 120 steps, 20 s for the reference) or read from the cache; overrides the
-    /// scene's `[world] accuracy`. The log says what was picked and why.
-    #[arg(long, value_name = "TOL")]
-    pub accuracy: Option<f64>,
-    /// Where accuracy measures are cached, keyed by the scene's content
-    /// (default: ~/.cache/ricochet/accuracy).
-    #[arg(long, value_name = "DIR")]
-    pub accuracy_cache: Option<PathBuf>,
 }
 
 #[derive(Subcommand)]
@@ -229,6 +249,71 @@ pub enum Command {
     Simulate(SimulateArgs),
 }
 
+impl RunArgs {
+    /// The host's options, each flag checked and named when refused.
+    pub fn host_options(self) -> Result<HostOptions> {
+        for (flag, value) in [
+            ("--sender-rate", self.sender_rate),
+            ("--sender-burst", self.sender_burst),
+        ] {
+            if !(value.is_finite() && value >= 1.0) {
+                bail!("{flag} {value}: must be a number of commands of 1 or more");
+            }
+        }
+        if self.queue == 0 {
+            bail!("--queue 0: at least one command must be able to wait");
+        }
+        if !(self.max_rate.is_finite() && self.max_rate > 0.0) {
+            bail!(
+                "--max-rate {}: must be a number of steps per second above 0",
+                self.max_rate
+            );
+        }
+        Ok(HostOptions {
+            scenes_dir: scenes_dir(self.scenes, self.scene.as_deref()),
+            limits: self.how.limits()?,
+            scene: self.scene,
+            world: self.world,
+            network: self.network.server(),
+            paused: self.paused,
+            overrides: self.how.set,
+            keyframe_interval: self.keyframe_interval,
+            max_frames: self.max_frames,
+            dump: self.dump,
+            max_rate: self.max_rate,
+            inbox: InboxLimits {
+                rate: self.sender_rate,
+                burst: self.sender_burst,
+                queue: self.queue,
+                ..InboxLimits::default()
+            },
+            journal: self.journal,
+            resume: self.resume,
+            accuracy: self.how.accuracy,
+            accuracy_cache: self.how.accuracy_cache,
+        })
+    }
+}
+
+/// Where `load` may read scenes: `--scenes`, else the directory of `--scene` unless that
+/// is the working directory: a scene named bare (or a resumed journal) must not open the
+/// server's working directory to `load`.
+fn scenes_dir(scenes: Option<PathBuf>, scene: Option<&Path>) -> Option<PathBuf> {
+    match (scenes, scene) {
+        (Some(dir), _) => Some(dir),
+        (None, None) => None,
+        (None, Some(scene)) => {
+            let dir = scene.parent().unwrap_or(Path::new(""));
+            let cwd = std::env::current_dir()
+                .ok()
+                .and_then(|d| d.canonicalize().ok());
+            let here = dir.as_os_str().is_empty()
+                || dir.canonicalize().ok().is_some_and(|d| Some(d) == cwd);
+            (!here).then(|| dir.to_path_buf())
+        }
+    }
+}
+
 /// What `simulate` runs and writes.
 #[derive(clap::Args)]
 pub struct SimulateArgs {
@@ -241,10 +326,8 @@ pub struct SimulateArgs {
     /// Seed of the world's random generator (overrides the scene's `[world] seed`).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Override a `[world]` field, e.g. --set relaxation_iterations=30
-    /// --set gravity=[0,-9.8] --set integrator=explicit. Repeatable.
-    #[arg(long = "set", value_name = "NAME=VALUE")]
-    pub set: Vec<String>,
+    #[command(flatten)]
+    pub how: WorldFlags,
     /// Write every frame as JSON Lines to this file ("-" for standard output).
     #[arg(long)]
     pub dump: Option<PathBuf>,
@@ -264,19 +347,6 @@ pub struct SimulateArgs {
     /// With --wire-stats: a key frame every this many frames, as `run` would send.
     #[arg(long, default_value_t = 60)]
     pub keyframe_interval: u64,
-    /// Lower or raise a limit of the world, as for `run` (docs/security.md). Repeatable.
-    #[arg(long = "limit", value_name = "NAME=VALUE")]
-    pub limit: Vec<String>,
-    /// Run the scene under the cheapest setting whose worst position error meets TOL
-    /// (scene units), measured on the scene at start-up against a converged reference
-    /// (bounded: 120 steps, 20 s for the reference) or read from the cache; overrides the
-    /// scene's `[world] accuracy`. The log says what was picked and why.
-    #[arg(long, value_name = "TOL")]
-    pub accuracy: Option<f64>,
-    /// Where accuracy measures are cached, keyed by the scene's content
-    /// (default: ~/.cache/ricochet/accuracy).
-    #[arg(long, value_name = "DIR")]
-    pub accuracy_cache: Option<PathBuf>,
 }
 
 /// `tradeoff --scene`: the trade measured on one scene.

@@ -35,7 +35,7 @@ mod run;
 mod tests;
 
 pub use candidates::{default_candidates, Candidate, Features};
-pub use output::index;
+pub use output::{index, write_index};
 use run::{body_error, body_errors, particle_error, timed_run};
 pub use run::{run, Run};
 

@@ -1,43 +1,60 @@
 //! A measured scene as CSV, Markdown, a terminal table, a chart, and the index of several.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
 
 use super::{judged_error, Report, Row};
 use crate::report::chart::{panel, register_font, Point};
+use crate::report::table::Table;
 
 impl Report {
-    pub fn to_csv(&self) -> String {
-        let mut out = String::from(
-            "scene,setting,overrides,ms_mean,ms_median,ms_p10,ms_p90,solver_work,worst_error,rms_error,deepest_penetration,worst_energy_change,particle_worst_error,particle_rms_error,nan,on_front,fails\n",
-        );
-        for r in &self.rows {
-            let (pw, pr) = r
-                .particle_error
-                .map_or((String::new(), String::new()), |(w, rms)| {
-                    (format!("{w:.6e}"), format!("{rms:.6e}"))
-                });
-            out += &format!(
-                "{},\"{}\",\"{}\",{:.6},{:.6},{:.6},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{pw},{pr},{},{},\"{}\"\n",
-                self.scene.display(),
-                r.name,
-                r.overrides.join(";"),
-                r.ms_mean,
-                r.ms_median,
-                r.ms_spread.0,
-                r.ms_spread.1,
-                r.work,
-                r.worst_error,
-                r.rms_error,
-                r.deepest_penetration,
-                r.worst_energy_change,
-                r.nan,
-                r.on_front,
-                r.fails.join(";")
-            );
+    /// The rows as CSV, a line each.
+    pub fn to_csv(&self) -> Result<String> {
+        #[derive(serde::Serialize)]
+        struct Line<'a> {
+            scene: String,
+            setting: &'a str,
+            overrides: String,
+            ms_mean: f64,
+            ms_median: f64,
+            ms_p10: f64,
+            ms_p90: f64,
+            solver_work: u64,
+            worst_error: f64,
+            rms_error: f64,
+            deepest_penetration: f64,
+            worst_energy_change: f64,
+            particle_worst_error: Option<f64>,
+            particle_rms_error: Option<f64>,
+            nan: bool,
+            on_front: bool,
+            fails: String,
         }
-        out
+        let lines: Vec<Line> = self
+            .rows
+            .iter()
+            .map(|r| Line {
+                scene: self.scene.display().to_string(),
+                setting: &r.name,
+                overrides: r.overrides.join(";"),
+                ms_mean: r.ms_mean,
+                ms_median: r.ms_median,
+                ms_p10: r.ms_spread.0,
+                ms_p90: r.ms_spread.1,
+                solver_work: r.work,
+                worst_error: r.worst_error,
+                rms_error: r.rms_error,
+                deepest_penetration: r.deepest_penetration,
+                worst_energy_change: r.worst_energy_change,
+                particle_worst_error: r.particle_error.map(|e| e.0),
+                particle_rms_error: r.particle_error.map(|e| e.1),
+                nan: r.nan,
+                on_front: r.on_front,
+                fails: r.fails.join(";"),
+            })
+            .collect();
+        crate::report::to_csv(&lines)
     }
 
     /// What the reference is and how far it is to be trusted, in one sentence.
@@ -83,47 +100,48 @@ impl Report {
     /// A Markdown table of the rows, the front marked.
     pub fn to_markdown(&self) -> String {
         let particles = self.features.particles;
-        let mut out = String::from(
-            "| setting | mean ms/step (whole run) | median (p10-p90) | solver work | worst error | RMS error | deepest penetration | worst energy change |",
-        );
+        let mut header = vec![
+            "setting",
+            "mean ms/step (whole run)",
+            "median (p10-p90)",
+            "solver work",
+            "worst error",
+            "RMS error",
+            "deepest penetration",
+            "worst energy change",
+        ];
         if particles {
-            out += " particle error worst / RMS |";
+            header.push("particle error worst / RMS");
         }
-        out += " fails | front |\n|---|---|---|---|---|---|---|---|";
-        if particles {
-            out += "---|";
-        }
-        out += "---|---|\n";
+        header.extend(["fails", "front"]);
+        let mut t = Table::new(header);
         for r in &self.rows {
-            out += &format!(
-                "| {} | {:.5} | {:.5} ({:.5}-{:.5}) | {} | {:.2e}{} | {:.2e} | {:.2e} | {:.2e} |",
-                r.name,
-                r.ms_mean,
-                r.ms_median,
-                r.ms_spread.0,
-                r.ms_spread.1,
-                r.work,
-                r.worst_error,
-                if r.nan { " NaN" } else { "" },
-                r.rms_error,
-                r.deepest_penetration,
-                r.worst_energy_change,
-            );
+            let mut cells = vec![
+                r.name.clone(),
+                format!("{:.5}", r.ms_mean),
+                format!(
+                    "{:.5} ({:.5}-{:.5})",
+                    r.ms_median, r.ms_spread.0, r.ms_spread.1
+                ),
+                r.work.to_string(),
+                format!("{:.2e}{}", r.worst_error, if r.nan { " NaN" } else { "" }),
+                format!("{:.2e}", r.rms_error),
+                format!("{:.2e}", r.deepest_penetration),
+                format!("{:.2e}", r.worst_energy_change),
+            ];
             if particles {
                 let (w, rms) = r.particle_error.unwrap_or((0.0, 0.0));
-                out += &format!(" {w:.2e} / {rms:.2e} |");
+                cells.push(format!("{w:.2e} / {rms:.2e}"));
             }
-            out += &format!(
-                " {} | {} |\n",
-                if r.fails.is_empty() {
-                    "none".to_string()
-                } else {
-                    r.fails.join(", ")
-                },
-                if r.on_front { "yes" } else { "" }
-            );
+            cells.push(if r.fails.is_empty() {
+                "none".to_string()
+            } else {
+                r.fails.join(", ")
+            });
+            cells.push((if r.on_front { "yes" } else { "" }).to_string());
+            t.row(cells);
         }
-        out
+        t.to_string()
     }
 
     /// A short table for the terminal.
@@ -220,12 +238,62 @@ impl Report {
     }
 }
 
+impl Report {
+    /// Writes `out/<stem>.csv`, `out/<stem>.png` and the page `out/<stem>.md` (its table
+    /// and chart, saying it was generated by `command`), where `stem` is the scene file's.
+    /// Returns the page's file name and the files written.
+    pub fn write(&self, out: &Path, command: &str) -> Result<(String, [PathBuf; 3])> {
+        let stem = self
+            .scene
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+        let (csv, png, md) = (
+            out.join(format!("{stem}.csv")),
+            out.join(format!("{stem}.png")),
+            out.join(format!("{stem}.md")),
+        );
+        std::fs::write(&csv, self.to_csv()?)?;
+        self.chart(&png)?;
+        std::fs::write(
+            &md,
+            format!(
+                "# Speed against accuracy: `{}`\n\nGenerated by `{command}` on {}; not edited by hand.\n\n{}\n\n{}\n![time against error]({stem}.png)\n",
+                self.scene.display(),
+                crate::report::machine(),
+                self.reference_line(),
+                self.to_markdown(),
+            ),
+        )?;
+        Ok((format!("{stem}.md"), [csv, png, md]))
+    }
+}
+
+/// Writes `out/index.md`: a line per scene page ([`index`]), saying it was generated by
+/// `command`. Returns the file written.
+pub fn write_index(out: &Path, pages: &[(String, Report)], command: &str) -> Result<PathBuf> {
+    let file = out.join("index.md");
+    std::fs::write(
+        &file,
+        format!(
+            "# Speed against accuracy, scene by scene\n\nGenerated by `{command}` on {}; not edited by hand. Each scene's page has its full table and chart.\n\n{}",
+            crate::report::machine(),
+            index(pages),
+        ),
+    )?;
+    Ok(file)
+}
+
 /// One line per scene: what it holds, how far its reference is to be trusted, and the
 /// ends of its front (the fastest setting on it, and the most accurate).
 pub fn index(pages: &[(String, Report)]) -> String {
-    let mut out = String::from(
-        "| scene | bodies (dynamic / static) | holds | reference agrees to | fastest on the front | most accurate on the front |\n|---|---|---|---|---|---|\n",
-    );
+    let mut t = Table::new([
+        "scene",
+        "bodies (dynamic / static)",
+        "holds",
+        "reference agrees to",
+        "fastest on the front",
+        "most accurate on the front",
+    ]);
     for (page, r) in pages {
         let front: Vec<&Row> = r.rows.iter().filter(|row| row.on_front).collect();
         let fastest = front.iter().min_by(|a, b| a.ms_mean.total_cmp(&b.ms_mean));
@@ -251,27 +319,31 @@ pub fn index(pages: &[(String, Report)]) -> String {
         .map(|(_, what)| *what)
         .collect::<Vec<_>>()
         .join(", ");
-        out += &format!(
-            "| [{}]({page}) | {} / {} | {} | {:.1e}{} | {} | {} |\n",
-            r.scene
-                .file_name()
-                .map_or(String::new(), |n| n.to_string_lossy().into_owned()),
-            r.features.dynamic,
-            r.features.statics,
+        t.row([
+            format!(
+                "[{}]({page})",
+                r.scene
+                    .file_name()
+                    .map_or(String::new(), |n| n.to_string_lossy().into_owned())
+            ),
+            format!("{} / {}", r.features.dynamic, r.features.statics),
             if holds.is_empty() {
                 "flight only".into()
             } else {
                 holds
             },
-            r.reference.agreement,
-            if r.reference.converged {
-                ""
-            } else {
-                " (not converged)"
-            },
+            format!(
+                "{:.1e}{}",
+                r.reference.agreement,
+                if r.reference.converged {
+                    ""
+                } else {
+                    " (not converged)"
+                }
+            ),
             cell(fastest),
             cell(finest),
-        );
+        ]);
     }
-    out
+    t.to_string()
 }

@@ -1,13 +1,12 @@
 //! One run of a scene under a setting, recorded for comparing (positions per frame,
 //! particles at sampled frames, times and figures), and the differences of two runs.
 
-use std::time::Instant;
-
 use anyhow::Result;
 use glam::DVec2;
 
 use ricochet_engine::criteria::{Criteria, Figures, Judgement, Monitor};
 use ricochet_engine::world::World;
+use ricochet_protocol::command::Replay;
 
 use super::{Features, Subject};
 
@@ -101,17 +100,12 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
     let (watched, mut watching) = (w.bodies().len(), true);
     let mut extent = [DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)];
     let mut particle_every = 1u64;
-    let mut inputs = subject.inputs.iter().peekable();
+    let mut inputs = Replay::new(&subject.inputs);
     for _ in 0..subject.steps {
-        let mut acted = false;
-        while let Some(input) = inputs.next_if(|a| a.frame <= w.frame()) {
-            // An action the world refuses is refused under every setting alike.
-            let _ = w.apply(&input.action);
-            acted = true;
-        }
-        let t = Instant::now();
-        w.step();
-        run.ms.push(t.elapsed().as_secs_f64() * 1e3);
+        // An action the world refuses is refused under every setting alike.
+        let done = inputs.step(&mut w, |_, _| {});
+        let acted = done.due > 0;
+        run.ms.push(done.step_time.as_secs_f64() * 1e3);
         let s = w.stats();
         run.work += s.relaxation_iterations.max(1) * s.contacts
             + u64::from(w.config.substeps) * run.dynamic.len() as u64;

@@ -4,11 +4,11 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{SoakOptions, SoakReport, IDLE_AFTER, WARM_UP};
+use crate::report::table::Table;
 
 impl SoakReport {
     /// The report as a Markdown table.
     pub fn to_markdown(&self, opts: &SoakOptions) -> String {
-        let mut s = String::new();
         let h = &self.health;
         let rows: Vec<(&str, String)> = vec![
             (
@@ -83,22 +83,24 @@ impl SoakReport {
                 h.unsent.to_string(),
             ),
         ];
-        let _ = writeln!(s, "| figure | value |\n|---|---|");
+        let mut t = Table::new(["figure", "value"]);
         for (k, v) in rows {
-            let _ = writeln!(s, "| {k} | {v} |");
+            t.row([k.to_string(), v]);
         }
         // The goal's figure: the world's memory with its clients connected and quiet, before
         // any load (the first server's start), against the server that ran to the end, idle
         // after the load.
         if let (Some(first), Some(idle)) = (self.rss.first(), self.rss.last().and_then(|m| m.idle))
         {
-            let _ = writeln!(
-                s,
-                "| allocated memory back after the load | {:.2} MiB before the load, {idle:.2} MiB {} s after it ended ({:+.1}%) |",
-                first.start,
-                IDLE_AFTER.as_secs(),
-                (idle / first.start - 1.0) * 100.0
-            );
+            t.row([
+                "allocated memory back after the load".to_string(),
+                format!(
+                    "{:.2} MiB before the load, {idle:.2} MiB {} s after it ended ({:+.1}%)",
+                    first.start,
+                    IDLE_AFTER.as_secs(),
+                    (idle / first.start - 1.0) * 100.0
+                ),
+            ]);
         }
         for (i, m) in self.rss.iter().enumerate() {
             let which = if i == 0 && self.rss.len() > 1 {
@@ -118,36 +120,51 @@ impl SoakReport {
                     )
                 })
                 .unwrap_or_default();
-            let _ = writeln!(
-                s,
-                "| allocated memory (resident, anonymous), {which} | {:.2} MiB at start{warm}, {:.2} peak, {:.2} at end ({:+.1}% against the start) |",
-                m.start,
-                m.peak,
-                m.end,
-                (m.end / m.start - 1.0) * 100.0
-            );
+            t.row([format!("allocated memory (resident, anonymous), {which}"), format!("{:.2} MiB at start{warm}, {:.2} peak, {:.2} at end ({:+.1}% against the start)", m.start, m.peak, m.end, (m.end / m.start - 1.0) * 100.0)]);
             if let Some(idle) = m.idle {
-                let _ = writeln!(
-                    s,
-                    "| allocated memory {} s after the load ended, {which} | {idle:.2} MiB ({:+.1}% against the start) |",
-                    IDLE_AFTER.as_secs(),
-                    (idle / m.start - 1.0) * 100.0
-                );
+                t.row([
+                    format!(
+                        "allocated memory {} s after the load ended, {which}",
+                        IDLE_AFTER.as_secs()
+                    ),
+                    format!(
+                        "{idle:.2} MiB ({:+.1}% against the start)",
+                        (idle / m.start - 1.0) * 100.0
+                    ),
+                ]);
             }
-            let _ = writeln!(
-                s,
-                "| whole resident set (code pages included), {which} | {:.1} MiB at start, {:.1} at end ({:+.1}%) |",
-                m.total_start,
-                m.total_end,
-                (m.total_end / m.total_start - 1.0) * 100.0
-            );
-            let _ = writeln!(
-                s,
-                "| threads, {which} | {} at start, {} at the end |",
-                m.threads_start, m.threads_end
-            );
+            t.row([
+                format!("whole resident set (code pages included), {which}"),
+                format!(
+                    "{:.1} MiB at start, {:.1} at end ({:+.1}%)",
+                    m.total_start,
+                    m.total_end,
+                    (m.total_end / m.total_start - 1.0) * 100.0
+                ),
+            ]);
+            t.row([
+                format!("threads, {which}"),
+                format!("{} at start, {} at the end", m.threads_start, m.threads_end),
+            ]);
         }
-        s
+        t.to_string()
+    }
+}
+
+impl SoakReport {
+    /// Writes the table between the `soak` markers of `out`, saying the command and
+    /// machine that measured it.
+    pub fn write(&self, opts: &SoakOptions, out: &Path) -> anyhow::Result<()> {
+        crate::report::splice(
+            out,
+            "soak",
+            &format!(
+                "Measured by `{}` on {}.\n\n{}",
+                command_line(opts, Some(out)),
+                crate::report::machine(),
+                self.to_markdown(opts)
+            ),
+        )
     }
 }
 

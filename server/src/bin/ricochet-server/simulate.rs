@@ -1,0 +1,215 @@
+//! `simulate`: a scene run headless for a number of steps, its frames dumped, its figures
+//! and its bytes on the wire reported.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use ricochet_engine::scene;
+use ricochet_engine::world::World;
+use ricochet_protocol::command::{parse_input_log, Replay, TimedAction};
+use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
+use ricochet_protocol::world::{self as wire, write_frame};
+
+use crate::args::SimulateArgs;
+
+/// Reads an input log (`--inputs`), its errors naming the file and line.
+pub fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read inputs {}", path.display()))?;
+    parse_input_log(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+}
+
+pub fn simulate(args: SimulateArgs) -> Result<()> {
+    let SimulateArgs {
+        scene: scene_path,
+        steps,
+        seed,
+        how,
+        dump: dump_path,
+        inputs,
+        stats: stats_path,
+        wire_stats,
+        keyframe_interval,
+    } = args;
+    let limits = how.limits()?;
+    let mut overrides = how.set;
+    let (scene_path, dump_path, stats_path, inputs) = (
+        scene_path.as_path(),
+        dump_path.as_deref(),
+        stats_path.as_deref(),
+        inputs.as_deref(),
+    );
+    let wire_stats = wire_stats.then_some(keyframe_interval);
+    if let Some(seed) = seed {
+        overrides.push(format!("seed={seed}"));
+    }
+    let text = std::fs::read_to_string(scene_path)
+        .with_context(|| format!("cannot read scene {}", scene_path.display()))?;
+    if let Some(pick) = ricochet_server::accuracy::apply_to(
+        scene_path,
+        &text,
+        &mut overrides,
+        how.accuracy,
+        how.accuracy_cache.as_deref(),
+    )? {
+        eprintln!("{}", pick.reason());
+    }
+    let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)?;
+    let inputs = match inputs {
+        Some(p) => read_inputs(p)?,
+        None => Vec::new(),
+    };
+
+    let mut out: Option<Box<dyn Write>> = match dump_path {
+        None => None,
+        Some(p) if p == Path::new("-") => Some(Box::new(BufWriter::new(std::io::stdout().lock()))),
+        Some(p) => Some(Box::new(BufWriter::new(
+            File::create(p).with_context(|| format!("cannot create dump {}", p.display()))?,
+        ))),
+    };
+    if let Some(out) = out.as_mut() {
+        write_frame(out, &world)?;
+    }
+    let mut stats_out = match stats_path {
+        None => None,
+        Some(p) => {
+            Some(BufWriter::new(File::create(p).with_context(|| {
+                format!("cannot create stats {}", p.display())
+            })?))
+        }
+    };
+
+    let progress = indicatif::ProgressBar::new(steps);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} eta {eta}")
+            .expect("the template is valid"),
+    );
+    let mut wire = wire_stats.map(|interval| WireStats::new(&world, interval));
+    let mut replay = Replay::new(&inputs);
+    let mut refused = 0usize;
+    let started = Instant::now();
+    let mut stepping = Duration::ZERO;
+    for _ in 0..steps {
+        let frame = world.frame();
+        let done = replay.step(&mut world, |input, outcome| match outcome {
+            Ok(outcome) if !outcome.ids.is_empty() => {
+                tracing::debug!(frame, ids = ?outcome.ids, "action applied")
+            }
+            Ok(_) => {}
+            Err(e) => {
+                tracing::warn!(frame, action = ?input.action, "action refused: {e}");
+            }
+        });
+        refused += done.refused;
+        stepping += done.step_time;
+        if let Some(out) = out.as_mut() {
+            write_frame(out, &world)?;
+        }
+        if let Some(out) = stats_out.as_mut() {
+            serde_json::to_writer(&mut *out, &wire::stats_record(&world))?;
+            out.write_all(b"\n")?;
+        }
+        if let Some(w) = wire.as_mut() {
+            w.frame(&world);
+        }
+        progress.inc(1);
+    }
+    progress.finish_and_clear();
+    if let Some(mut out) = out {
+        out.flush()?;
+    }
+    if let Some(mut out) = stats_out {
+        out.flush()?;
+    }
+    let stats = world.stats();
+    let per_step = if steps > 0 {
+        stepping.as_secs_f64() * 1e3 / steps as f64
+    } else {
+        0.0
+    };
+    eprintln!(
+        "{}: {steps} steps in {:.3} s ({per_step:.4} ms/step stepping), t = {:.3} s; {} bodies, {} particles, {} emitters; \
+         last step: {} contacts, {} relaxation passes, deepest penetration {:.4}, kinetic energy {:.4}; {refused} actions refused",
+        scene_path.display(),
+        started.elapsed().as_secs_f64(),
+        world.time(),
+        world.bodies().len(),
+        world.particles().len(),
+        world.emitters().len(),
+        stats.contacts,
+        stats.relaxation_iterations,
+        stats.deepest_penetration,
+        stats.kinetic_energy,
+    );
+    if let Some(w) = wire {
+        w.report();
+    }
+    Ok(())
+}
+
+/// Bytes on the wire, frame by frame (`simulate --wire-stats`).
+struct WireStats {
+    encoder: FrameEncoder,
+    statics_bytes: usize,
+    frames: u64,
+    bytes: u64,
+    key_frames: (u64, u64),
+    body_frames: u64,
+    particle_frames: u64,
+}
+
+impl WireStats {
+    fn new(world: &World, keyframe_interval: u64) -> Self {
+        let mut w = WireStats {
+            encoder: FrameEncoder::new(keyframe_interval),
+            statics_bytes: wire::statics_snapshot(world).len(),
+            frames: 0,
+            bytes: 0,
+            key_frames: (0, 0),
+            body_frames: 0,
+            particle_frames: 0,
+        };
+        w.frame(world);
+        w
+    }
+
+    fn frame(&mut self, world: &World) {
+        let bytes = wire::encode_frame(&mut self.encoder, world, 0.0, 0);
+        let header = peek_header(&bytes).expect("own frames read back");
+        self.frames += 1;
+        self.bytes += bytes.len() as u64;
+        if header.kind == KIND_KEY {
+            self.key_frames.0 += 1;
+            self.key_frames.1 += bytes.len() as u64;
+        }
+        self.body_frames += header.stats.dynamic_bodies as u64;
+        self.particle_frames += header.stats.particles as u64;
+    }
+
+    fn report(&self) {
+        let per = |num: u64, den: u64| {
+            if den > 0 {
+                num as f64 / den as f64
+            } else {
+                0.0
+            }
+        };
+        let deltas = self.frames - self.key_frames.0;
+        let payload = self.bytes - self.frames * HEADER_BYTES as u64;
+        eprintln!(
+            "wire: {} frames, {:.1} bytes/frame on average ({:.1} in key frames, {:.1} in delta frames; {} of header each);              statics snapshot {} bytes once; {:.1} dynamic bodies and {:.1} particles a frame on average;              {:.3} bytes per body-or-particle a frame beyond the header",
+            self.frames,
+            per(self.bytes, self.frames),
+            per(self.key_frames.1, self.key_frames.0),
+            per(self.bytes - self.key_frames.1, deltas),
+            HEADER_BYTES,
+            self.statics_bytes,
+            per(self.body_frames, self.frames),
+            per(self.particle_frames, self.frames),
+            per(payload, self.body_frames + self.particle_frames),
+        );
+    }
+}
