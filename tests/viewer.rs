@@ -375,6 +375,34 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
     assert!(fire_px >= 100, "particle colours: {fire_px} pixels");
     assert!(plot_px >= 100, "plot lines: {plot_px} pixels");
 
+    // The world paused with its fires alive: no more frames, so the page drains what it
+    // queued (a software-rendered page lags the world by tens of seconds under load) and
+    // then shows the last frame, still, its particles drawn. Only then is the scene
+    // replaced, so what is judged after the load is the viewer's clearing, not the page's
+    // backlog.
+    let reply = request(&client, Command::Server(ServerCommand::Pause));
+    assert!(reply.ok, "{reply:?}");
+    // The old scene's platforms, minions and hero: the palette's blue, green and violet.
+    let old_scene = |r: u8, g: u8, b: u8| {
+        (b >= 200 && r <= 120 && (130..=210).contains(&g))
+            || (g >= 200 && r <= 130 && b <= 150)
+            || (r >= 170 && g <= 160 && b >= 220)
+    };
+    // Still: the same figures in three shots in a row, 3 s apart.
+    let last = std::cell::Cell::new(((0, 0), 0));
+    let still = shoot("viewer-paused.png", &|img| {
+        let figures = (count(img, world, fire), count(img, world, red));
+        let (before, times) = last.get();
+        let times = if before == figures { times + 1 } else { 0 };
+        last.set((figures, times));
+        times >= 2 && figures.0 >= 20
+    });
+    let paused_fire = count(&still, world, fire);
+    assert!(
+        paused_fire >= 20,
+        "the paused world's particles drawn: {paused_fire} pixels"
+    );
+
     // Now a scene of two boxes overlapping, detection only, no particles: only the
     // collided outlines are red.
     let reply = request(
@@ -385,8 +413,12 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
         }),
     );
     assert!(reply.ok, "{reply:?}");
+    let reply = request(&client, Command::Server(ServerCommand::Resume));
+    assert!(reply.ok, "{reply:?}");
     let collided = shoot("viewer-collided.png", &|img| {
-        count(img, world, red) >= 200 && count(img, world, fire) < 20
+        count(img, world, old_scene) < 50
+            && count(img, world, red) >= 200
+            && count(img, world, fire) < 20
     });
     let _ = writeln!(node_in, "quit");
     drop(node_in);
@@ -394,11 +426,19 @@ fn the_web_viewer_draws_collided_outlines_particles_and_plots_in_a_browser() {
     while node.0.try_wait().unwrap().is_none() && began.elapsed() < Duration::from_secs(20) {
         std::thread::sleep(Duration::from_millis(100));
     }
-    let red_px = count(&collided, world, red);
+    let (old_px, red_px, fire_px) = (
+        count(&collided, world, old_scene),
+        count(&collided, world, red),
+        count(&collided, world, fire),
+    );
+    assert!(
+        old_px < 50,
+        "the page still shows the old scene 240 s after the load ({old_px} pixels of its colours)"
+    );
     assert!(red_px >= 200, "red collided outlines: {red_px} pixels");
     assert!(
-        count(&collided, world, fire) < 20,
-        "the particles went with the old scene"
+        fire_px < 20,
+        "the particles went with the old scene: {fire_px} fire-coloured pixels left"
     );
     assert!(count(&collided, plots, plot) >= 100, "plots still drawn");
 }
