@@ -2,7 +2,7 @@
 //! of it, and the server's clock state (paused, steps asked for).
 
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use ricochet_engine::scene;
 use ricochet_engine::world::{short, Limits, World};
@@ -21,6 +21,11 @@ pub const MAX_STEPS_PER_COMMAND: u32 = 10_000;
 /// Steps asked for and not yet run, at most: a `step` beyond it is refused.
 pub const MAX_PENDING_STEPS: u64 = 100_000;
 
+/// Changed statics are published at most once per this (a new scene's at once): a static
+/// body dragged every frame must not send every static to every viewer every frame. A
+/// snapshot query is always answered with the statics as they are.
+pub const SNAPSHOT_EVERY: Duration = Duration::from_millis(250);
+
 /// The world, its scene and what the wire remembers of it.
 pub struct Hosted {
     pub world: World,
@@ -30,6 +35,9 @@ pub struct Hosted {
     pub encoder: FrameEncoder,
     statics_revision: Option<u64>,
     pub snapshot: Vec<u8>,
+    /// When the statics were last published, and which (the generation and the world's
+    /// statics revision).
+    snapshot_sent: Option<(Instant, (u64, u64))>,
     pub paused: bool,
     /// Steps asked for by `step` commands and not yet run: the host runs them in slices,
     /// answering other clients between slices.
@@ -72,6 +80,7 @@ impl Hosted {
             encoder: FrameEncoder::new(opts.keyframe_interval),
             statics_revision: None,
             snapshot: Vec::new(),
+            snapshot_sent: None,
             paused: false,
             pending_steps: 0,
             steps_run: 0,
@@ -120,6 +129,27 @@ impl Hosted {
         self.snapshot = wire::statics_snapshot(&self.world);
         self.statics_revision = Some(rev);
         true
+    }
+
+    /// The statics snapshot to publish at `now`: when they changed since they were last
+    /// published, and that was at least [`SNAPSHOT_EVERY`] ago or another scene's. A
+    /// change held back goes out on the first call after that (the host calls this every
+    /// pass of its loop, paused or not).
+    pub fn snapshot_due(&mut self, now: Instant) -> Option<Vec<u8>> {
+        let current = (self.generation, self.world.statics_revision());
+        match self.snapshot_sent {
+            Some((_, sent)) if sent == current => return None,
+            Some((at, (generation, _)))
+                if generation == self.generation
+                    && now.saturating_duration_since(at) < SNAPSHOT_EVERY =>
+            {
+                return None
+            }
+            _ => {}
+        }
+        self.refresh_snapshot();
+        self.snapshot_sent = Some((now, current));
+        Some(self.snapshot.clone())
     }
 
     pub fn encode_frame(&mut self) -> Vec<u8> {
@@ -245,5 +275,124 @@ impl Hosted {
         self.world.step();
         self.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
         self.health.frames += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::host::inbox::InboxLimits;
+    use ricochet_protocol::command::Action;
+    use ricochet_protocol::net::Network;
+
+    const SCENE: &str = r#"
+[world]
+gravity = [0, 0]
+bounds = [[0, 0], [200, 100]]
+
+[[body]]
+id = "wall"
+group = "walls"
+shape = "rect"
+size = [10, 40]
+pos = [50, 50]
+mass = 0
+
+[[body]]
+id = "ball"
+group = "balls"
+shape = "circle"
+radius = 2
+pos = [150, 50]
+mass = 1
+"#;
+
+    fn hosted() -> Hosted {
+        let opts = HostOptions {
+            scene: None,
+            world: "statics".into(),
+            network: Network::default(),
+            paused: false,
+            overrides: Vec::new(),
+            keyframe_interval: 60,
+            max_frames: None,
+            dump: None,
+            scenes_dir: None,
+            limits: Limits::default(),
+            max_rate: 1000.0,
+            inbox: InboxLimits::default(),
+            journal: None,
+            resume: None,
+            accuracy: None,
+            accuracy_cache: None,
+        };
+        Hosted::load(SCENE.into(), "statics.toml".into(), &opts).unwrap()
+    }
+
+    #[test]
+    fn a_static_dragged_every_frame_is_published_a_few_times_a_second() {
+        let mut h = hosted();
+        let t0 = Instant::now();
+        assert!(h.snapshot_due(t0).is_some(), "the first statics go out");
+        assert!(h.snapshot_due(t0).is_none(), "unchanged statics do not");
+        let select = Command::World(Action::Select {
+            at: [50.0, 50.0],
+            group: Some("walls".into()),
+        });
+        assert!(h.handle(&select).reply.ok);
+        // A second of frames at 60 Hz, the wall dragged in each.
+        let mut sent = Vec::new();
+        for k in 1..=60u32 {
+            let now = t0 + Duration::from_secs(1) * k / 60;
+            let drag = Command::World(Action::Drag {
+                to: [50.0 + f64::from(k), 50.0],
+            });
+            assert!(h.handle(&drag).reply.ok);
+            h.world.step();
+            if let Some(snapshot) = h.snapshot_due(now) {
+                sent.push((now, snapshot));
+            }
+        }
+        assert!(
+            (3..=4).contains(&sent.len()),
+            "{} snapshots in a second",
+            sent.len()
+        );
+        for pair in sent.windows(2) {
+            assert!(pair[1].0 - pair[0].0 >= SNAPSHOT_EVERY);
+        }
+        // A drag just after a publish is held back, not lost: it goes out once the
+        // interval has passed, with the wall where it was left.
+        let last = sent.last().unwrap().0;
+        let drag = Command::World(Action::Drag { to: [30.0, 50.0] });
+        assert!(h.handle(&drag).reply.ok);
+        assert!(h.snapshot_due(last + Duration::from_millis(1)).is_none());
+        let late = h
+            .snapshot_due(last + SNAPSHOT_EVERY)
+            .expect("the last drag goes out");
+        assert_eq!(late, wire::statics_snapshot(&h.world));
+        assert_ne!(late, sent.last().unwrap().1);
+        // A query in between (which refreshes the cached snapshot) does not swallow a
+        // change: the next due call still publishes it.
+        let drag = Command::World(Action::Drag { to: [20.0, 50.0] });
+        assert!(h.handle(&drag).reply.ok);
+        h.refresh_snapshot();
+        assert!(h.snapshot_due(last + SNAPSHOT_EVERY * 2).is_some());
+    }
+
+    #[test]
+    fn a_new_scene_publishes_its_statics_at_once() {
+        let mut h = hosted();
+        let t0 = Instant::now();
+        assert!(h.snapshot_due(t0).is_some());
+        let load = Command::Server(ServerCommand::Load {
+            path: None,
+            text: Some(SCENE.replace("[50, 50]", "[60, 50]")),
+        });
+        assert!(h.handle(&load).reply.ok);
+        assert!(
+            h.snapshot_due(t0 + Duration::from_millis(1)).is_some(),
+            "a loaded scene's statics go out with its first frame"
+        );
     }
 }

@@ -163,6 +163,15 @@ fn drops_event(frame: u64, before: [u64; 3], now: [u64; 3]) -> Option<Event> {
     })
 }
 
+/// Publishes the statics snapshot if it is due ([`Hosted::snapshot_due`]).
+fn publish_statics(h: &mut Hosted, snapshots: &zenoh::pubsub::Publisher<'_>) {
+    if let Some(snapshot) = h.snapshot_due(Instant::now()) {
+        if let Err(e) = snapshots.put(snapshot).wait() {
+            tracing::warn!("publishing the snapshot failed: {e}");
+        }
+    }
+}
+
 /// Hosts a world until killed (or `max_frames`).
 pub fn run(opts: HostOptions) -> Result<()> {
     one_heap();
@@ -299,11 +308,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     // (and resyncs from the next key frame or the state query), it never holds the clock.
     let mut publish = |h: &mut Hosted| {
         h.fresh = false;
-        if h.refresh_snapshot() {
-            if let Err(e) = snapshots.put(h.snapshot.clone()).wait() {
-                tracing::warn!("publishing the snapshot failed: {e}");
-            }
-        }
+        publish_statics(h, &snapshots);
         let bytes = h.encode_frame();
         if let Err(e) = frames.put(bytes).wait() {
             tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
@@ -343,6 +348,8 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let mut last_drops = (Instant::now(), [0u64; 3]);
     loop {
         inbox.set_frame(host.world.frame());
+        // A change of the statics held back by their rate goes out once it is due.
+        publish_statics(&mut host, &snapshots);
 
         // Queries are answered from what the server has, a bounded number per pass.
         for _ in 0..MAX_QUERIES_PER_PASS {

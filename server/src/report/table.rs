@@ -45,7 +45,7 @@ impl Table {
         I::Item: Display,
     {
         let n = self.line(cells);
-        debug_assert!(
+        assert!(
             n <= self.columns,
             "a row of {n} cells in a table of {} columns",
             self.columns
