@@ -319,3 +319,47 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
     );
     assert!(reply.ok && reply.ids.is_empty(), "{reply:?}");
 }
+
+/// A flood of snapshot queries from one session is answered at the sender's query rate
+/// (50 a second, 100 at once), the rest dropped unanswered, so its answers cannot pile up
+/// in the server's memory; another client's query is still answered.
+#[test]
+fn a_flood_of_queries_is_answered_at_the_senders_rate() {
+    let server = Server::start("emitters.toml", "queried", &[]);
+    server.wait_up();
+    let flooder = server.client();
+    let key = flooder.keys().snapshot.clone();
+    let began = Instant::now();
+    let pending: Vec<_> = (0..600)
+        .map(|_| {
+            flooder
+                .session()
+                .get(key.as_str())
+                .timeout(Duration::from_secs(20))
+                .wait()
+                .expect("a query goes out")
+        })
+        .collect();
+    let sent_in = began.elapsed().as_secs_f64();
+    let mut answered = 0usize;
+    for replies in pending {
+        // A dropped query ends with no reply; an answered one has the snapshot.
+        while let Ok(reply) = replies.recv() {
+            if reply.result().is_ok_and(|s| !s.payload().is_empty()) {
+                answered += 1;
+            }
+        }
+    }
+    let allowed = 100.0 + 50.0 * sent_in;
+    eprintln!("{answered} of 600 snapshot queries answered, sent in {sent_in:.2} s");
+    assert!(
+        answered >= 50 && (answered as f64) <= allowed + 10.0,
+        "{answered} of 600 queries answered in {sent_in:.2} s (the bucket allows {allowed:.0})"
+    );
+    // Another client is not held back by the flooder's bucket.
+    let other = server.client();
+    let snapshot = other
+        .snapshot(Duration::from_secs(10))
+        .expect("another client's query is answered");
+    assert!(!snapshot.is_empty());
+}

@@ -18,6 +18,10 @@ use super::inbox::Sender;
 /// Ids remembered at most (the oldest are forgotten first).
 pub const REMEMBERED: usize = 16_384;
 
+/// Bytes of remembered ids and replies at most (the oldest are forgotten first): a reply
+/// may list every body of a large world, and 16 384 of them must not hold gigabytes.
+pub const REMEMBERED_BYTES: usize = 16 << 20;
+
 /// How long an id is remembered: a client retries within seconds (its timeout and
 /// back-off; a resumed server remembers the journal's ids from when it resumed).
 pub const REMEMBER_FOR: Duration = Duration::from_secs(30);
@@ -119,7 +123,8 @@ impl Answered {
     }
 
     /// Remembers the answer to `id` from `sender` (unless an answer to it is remembered),
-    /// forgetting what is older than [`REMEMBER_FOR`] or past [`REMEMBERED`].
+    /// forgetting what is older than [`REMEMBER_FOR`] or past [`REMEMBERED`] answers or
+    /// [`REMEMBERED_BYTES`].
     pub fn remember(&mut self, sender: Sender, id: String, answer: Answer) {
         self.remember_at(sender, id, answer, Instant::now());
     }
@@ -145,7 +150,8 @@ impl Answered {
         self.forget_at(now);
     }
 
-    /// Forgets what is older than [`REMEMBER_FOR`] or past [`REMEMBERED`] (cheap when
+    /// Forgets what is older than [`REMEMBER_FOR`] or past [`REMEMBERED`] answers or
+    /// [`REMEMBERED_BYTES`] (cheap when
     /// there is nothing to forget: the host calls it every pass).
     pub fn forget(&mut self) {
         if !self.order.is_empty() {
@@ -156,6 +162,7 @@ impl Answered {
     fn forget_at(&mut self, now: Instant) {
         while let Some(old) = self.order.front() {
             if self.order.len() <= REMEMBERED
+                && self.bytes.len() <= REMEMBERED_BYTES
                 && now.saturating_duration_since(old.at) < REMEMBER_FOR
             {
                 break;
@@ -222,6 +229,38 @@ mod tests {
             "the oldest is forgotten"
         );
         assert!(a.get(&None, "0").is_some());
+    }
+
+    #[test]
+    fn large_answers_are_held_within_a_byte_budget() {
+        // Replies listing the ids of a large world: 200 of about a MiB each.
+        let mut a = Answered::default();
+        let t0 = Instant::now();
+        let big = |i: u64| {
+            let mut reply = Reply::refused(i, "");
+            reply.ok = true;
+            reply.error = None;
+            reply.ids = (0..90_000).map(|k| format!("b{k}")).collect();
+            Answer::new(&reply, 0)
+        };
+        let one = big(0).reply.len();
+        assert!(one > 500_000, "{one} bytes");
+        for i in 0..200u64 {
+            a.remember_at(None, format!("id-{i}"), big(i), t0);
+            assert!(
+                a.bytes.len() <= REMEMBERED_BYTES,
+                "{} bytes held",
+                a.bytes.len()
+            );
+        }
+        // The newest are remembered, whole; the oldest went first.
+        assert_eq!(frame(&a.get(&None, "id-199").unwrap()), 199);
+        assert!(a.get(&None, "id-0").is_none());
+        assert!(
+            a.len() >= REMEMBERED_BYTES / one - 1,
+            "{} remembered",
+            a.len()
+        );
     }
 
     #[test]

@@ -67,6 +67,11 @@ pub struct InboxLimits {
     pub burst: f64,
     /// Queries (state, snapshot, info) waiting at most.
     pub queries: usize,
+    /// Queries a second each sender may make, over time (an answer may be the whole
+    /// world's state or statics: a flood of them is a flood of the server's bytes).
+    pub query_rate: f64,
+    /// Queries a sender may make at once above its rate.
+    pub query_burst: f64,
     /// The largest command taken, in bytes.
     pub command_bytes: usize,
 }
@@ -79,6 +84,8 @@ impl Default for InboxLimits {
             rate: 1000.0,
             burst: 500.0,
             queries: 1024,
+            query_rate: 50.0,
+            query_burst: 100.0,
             command_bytes: 65_536,
         }
     }
@@ -127,6 +134,8 @@ struct Queues {
     bytes: usize,
     queries: VecDeque<(Ask, Query)>,
     buckets: HashMap<Sender, Bucket>,
+    /// Each sender's bucket of queries.
+    query_buckets: HashMap<Sender, Bucket>,
 }
 
 pub struct Inbox {
@@ -254,8 +263,16 @@ impl Inbox {
 
     /// A query for what the server already has (zenoh's queryable callback).
     pub fn offer_query(&self, ask: Ask, query: Query) {
+        let sender = query.source_info().map(|s| s.source_id().zid().to_string());
+        let per_sender = InboxLimits {
+            rate: self.limits.query_rate,
+            burst: self.limits.query_burst,
+            ..self.limits
+        };
         let mut q = self.lock();
-        if q.queries.len() >= self.limits.queries {
+        if q.queries.len() >= self.limits.queries
+            || !take_token(&mut q.query_buckets, &sender, &per_sender)
+        {
             drop(q);
             // Dropping the query ends it for the querier: no answer.
             self.turned.queries_dropped.fetch_add(1, Ordering::Relaxed);

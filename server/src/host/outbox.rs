@@ -13,9 +13,9 @@
 //! would take 4096 slots (about 0.7 MiB) and, as its ends go round, keep every page of them
 //! resident after the first few thousand messages.
 
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Sender};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use zenoh::pubsub::Publisher;
 use zenoh::query::Query;
@@ -23,6 +23,18 @@ use zenoh::Wait;
 
 /// Replies and events waiting to leave, at most.
 pub const OUTBOX_CAPACITY: usize = 4096;
+
+/// Bytes of replies and events waiting to leave, at most: 4096 answers to snapshot queries
+/// of a large world would otherwise hold gigabytes. One larger than this alone is taken
+/// when nothing else waits.
+pub const OUTBOX_BYTES: usize = 64 << 20;
+
+/// What waits in the outbox: replies and events, and their bytes.
+#[derive(Default)]
+struct Waiting {
+    count: usize,
+    bytes: usize,
+}
 
 enum Out {
     Reply(Query, Vec<u8>),
@@ -33,8 +45,8 @@ enum Out {
 #[derive(Clone)]
 pub struct Outbox {
     tx: Sender<Out>,
-    /// Replies and events queued and not yet taken by the sending thread.
-    waiting: Arc<AtomicUsize>,
+    /// Replies and events queued and not yet sent by the sending thread.
+    waiting: Arc<Mutex<Waiting>>,
     /// Replies and events dropped: the queue was full, or zenoh refused them.
     pub unsent: Arc<AtomicU64>,
 }
@@ -44,19 +56,20 @@ impl Outbox {
     pub fn start(events: Publisher<'static>) -> Outbox {
         let (tx, rx) = channel::<Out>();
         let unsent = Arc::new(AtomicU64::new(0));
-        let waiting = Arc::new(AtomicUsize::new(0));
+        let waiting = Arc::new(Mutex::new(Waiting::default()));
         let (failed, taken) = (unsent.clone(), waiting.clone());
         std::thread::Builder::new()
             .name("ricochet-outbox".into())
             .spawn(move || {
                 for out in rx {
-                    taken.fetch_sub(1, Ordering::Relaxed);
+                    let len = out.len();
                     let sent = match out {
                         Out::Reply(query, body) => {
                             query.reply(query.key_expr().clone(), body).wait()
                         }
                         Out::Event(body) => events.put(body).wait(),
                     };
+                    release(&taken, len);
                     if let Err(e) = sent {
                         failed.fetch_add(1, Ordering::Relaxed);
                         tracing::debug!("a reply or event was not sent: {e}");
@@ -78,7 +91,7 @@ impl Outbox {
         let (tx, _) = channel::<Out>();
         Outbox {
             tx,
-            waiting: Arc::new(AtomicUsize::new(0)),
+            waiting: Arc::default(),
             unsent: Arc::new(AtomicU64::new(0)),
         }
     }
@@ -89,7 +102,7 @@ impl Outbox {
         let (tx, rx) = channel::<Out>();
         let outbox = Outbox {
             tx,
-            waiting: Arc::new(AtomicUsize::new(0)),
+            waiting: Arc::default(),
             unsent: Arc::new(AtomicU64::new(0)),
         };
         (outbox, rx)
@@ -106,25 +119,50 @@ impl Outbox {
     }
 
     fn send(&self, out: Out) {
-        // Take a place first: the count never passes the bound, whoever sends at once.
-        let placed = self
-            .waiting
-            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| {
-                (n < OUTBOX_CAPACITY).then_some(n + 1)
-            })
-            .is_ok();
+        // Take a place first: the bounds are never passed, whoever sends at once.
+        let len = out.len();
+        let placed = {
+            let mut w = self.waiting.lock().unwrap_or_else(|e| e.into_inner());
+            let fits = w.count < OUTBOX_CAPACITY
+                && (w.count == 0 || w.bytes.saturating_add(len) <= OUTBOX_BYTES);
+            if fits {
+                w.count += 1;
+                w.bytes += len;
+            }
+            fits
+        };
         if !placed {
             self.unsent.fetch_add(1, Ordering::Relaxed);
         } else if self.tx.send(out).is_err() {
-            self.waiting.fetch_sub(1, Ordering::Relaxed);
+            release(&self.waiting, len);
             self.unsent.fetch_add(1, Ordering::Relaxed);
         }
     }
 }
 
+impl Out {
+    fn len(&self) -> usize {
+        match self {
+            Out::Reply(_, body) | Out::Event(body) => body.len(),
+        }
+    }
+}
+
+/// Gives back the place of a reply or event of `len` bytes.
+fn release(waiting: &Mutex<Waiting>, len: usize) {
+    let mut w = waiting.lock().unwrap_or_else(|e| e.into_inner());
+    w.count = w.count.saturating_sub(1);
+    w.bytes = w.bytes.saturating_sub(len);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn waiting(outbox: &Outbox) -> (usize, usize) {
+        let w = outbox.waiting.lock().unwrap();
+        (w.count, w.bytes)
+    }
 
     #[test]
     fn a_full_outbox_drops_and_counts_and_takes_again_as_it_drains() {
@@ -133,14 +171,41 @@ mod tests {
             outbox.event(vec![1]);
         }
         assert_eq!(outbox.unsent.load(Ordering::Relaxed), 3);
-        assert_eq!(outbox.waiting.load(Ordering::Relaxed), OUTBOX_CAPACITY);
-        // The sending thread takes one (as its loop does), and one more fits.
+        assert_eq!(waiting(&outbox), (OUTBOX_CAPACITY, OUTBOX_CAPACITY));
+        // The sending thread sends one (as its loop does), and one more fits.
         assert!(rx.try_recv().is_ok());
-        outbox.waiting.fetch_sub(1, Ordering::Relaxed);
+        release(&outbox.waiting, 1);
         outbox.event(vec![2]);
         outbox.event(vec![3]);
         assert_eq!(outbox.unsent.load(Ordering::Relaxed), 4);
         assert_eq!(rx.try_iter().count(), OUTBOX_CAPACITY);
+    }
+
+    #[test]
+    fn large_replies_wait_within_a_byte_budget() {
+        // Answers to snapshot queries of a large world: half a MiB each.
+        let (outbox, rx) = Outbox::stalled();
+        let big = 512 << 10;
+        for _ in 0..1000 {
+            outbox.event(vec![0; big]);
+        }
+        let (count, bytes) = waiting(&outbox);
+        assert!(bytes <= OUTBOX_BYTES, "{bytes} bytes waiting");
+        assert_eq!(count, OUTBOX_BYTES / big);
+        assert_eq!(outbox.unsent.load(Ordering::Relaxed), (1000 - count) as u64);
+        // Small events still fit beside them only as the big ones leave.
+        outbox.event(vec![1]);
+        assert_eq!(waiting(&outbox).0, count);
+        assert!(rx.try_recv().is_ok());
+        release(&outbox.waiting, big);
+        outbox.event(vec![1]);
+        assert_eq!(waiting(&outbox), (count, bytes - big + 1));
+        // One larger than the whole budget goes when nothing else waits.
+        let (alone, _rx) = Outbox::stalled();
+        alone.event(vec![0; OUTBOX_BYTES + 1]);
+        assert_eq!(waiting(&alone), (1, OUTBOX_BYTES + 1));
+        alone.event(vec![1]);
+        assert_eq!(alone.unsent.load(Ordering::Relaxed), 1);
     }
 
     #[test]
@@ -149,6 +214,6 @@ mod tests {
         outbox.event(vec![1]);
         outbox.event(vec![2]);
         assert_eq!(outbox.unsent.load(Ordering::Relaxed), 2);
-        assert_eq!(outbox.waiting.load(Ordering::Relaxed), 0);
+        assert_eq!(waiting(&outbox), (0, 0));
     }
 }
