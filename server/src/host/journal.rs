@@ -13,6 +13,11 @@
 //!   scene's text, so a resume needs no file the server read;
 //! - `{"at": F}`: frame F was stepped (and published).
 //!
+//! Each line ends with a tab and the CRC-32 of the text before it (8 hexadecimal digits): a
+//! line changed or damaged after it was written is refused on resume, naming it, instead
+//! of resuming silently into another world (JSON text never holds a raw tab). Journals of
+//! version 1 have no checksums and still resume.
+//!
 //! Each line is flushed to the operating system as it is written: a killed process loses
 //! nothing written (a machine that loses power may lose what the OS had not yet stored).
 //! A resume replays the lines in order: the same scene, commands and steps give the same
@@ -35,8 +40,30 @@ use super::hosted::Hosted;
 use super::inbox::Sender;
 use super::HostOptions;
 
-/// The journal's format version.
-pub const VERSION: u32 = 1;
+/// The journal's format version: 2 has a checksum on every line, 1 none.
+pub const VERSION: u32 = 2;
+
+/// A journal line as written: its text, a tab and the text's CRC-32.
+fn signed(text: &str) -> String {
+    format!("{text}\t{:08x}", crc32fast::hash(text.as_bytes()))
+}
+
+/// The text of a journal line: without its checksum, if it has one that matches; as it
+/// is, if it has none (version 1); `None` if its checksum does not match.
+pub fn text_of(line: &str) -> Option<&str> {
+    if line.contains('\t') {
+        unsigned(line)
+    } else {
+        Some(line)
+    }
+}
+
+/// The text of a signed line, if its checksum matches.
+fn unsigned(line: &str) -> Option<&str> {
+    let (text, sum) = line.rsplit_once('\t')?;
+    (sum.len() == 8 && u32::from_str_radix(sum, 16).ok()? == crc32fast::hash(text.as_bytes()))
+        .then_some(text)
+}
 
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -117,7 +144,7 @@ impl Journal {
     }
 
     fn write(&mut self, line: &str) -> Result<()> {
-        writeln!(self.out, "{line}")
+        writeln!(self.out, "{}", signed(line))
             .and_then(|()| self.out.flush())
             .with_context(|| format!("cannot write the journal {}", self.path.display()))
     }
@@ -192,6 +219,11 @@ struct Lines<R> {
     n: usize,
     /// Bytes of the whole lines read.
     whole: u64,
+    /// Whether every line carries a checksum (journals of version 2 on); else only those
+    /// that have one are checked.
+    signed: bool,
+    /// Whether the last line read had a checksum (that matched).
+    had_sum: bool,
 }
 
 impl<R: BufRead> Lines<R> {
@@ -201,6 +233,8 @@ impl<R: BufRead> Lines<R> {
             bytes: Vec::new(),
             n: first - 1,
             whole: 0,
+            signed: true,
+            had_sum: false,
         }
     }
 
@@ -225,7 +259,20 @@ impl<R: BufRead> Lines<R> {
         self.bytes.pop();
         let line = std::str::from_utf8(&self.bytes)
             .map_err(|_| anyhow!("journal {} line {}: not UTF-8 text", path.display(), self.n))?;
-        Ok(Some((self.n, line)))
+        // A journal of version 1 has lines without checksums, and those a resumed server
+        // appended with them.
+        self.had_sum = line.contains('\t');
+        if !self.signed && !self.had_sum {
+            return Ok(Some((self.n, line)));
+        }
+        let text = unsigned(line).ok_or_else(|| {
+            anyhow!(
+                "journal {} line {}: its checksum does not match (the line was changed or damaged after it was written)",
+                path.display(),
+                self.n
+            )
+        })?;
+        Ok(Some((self.n, text)))
     }
 }
 
@@ -242,18 +289,25 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         || File::open(path).with_context(|| format!("cannot open the journal {}", path.display()));
     let at = |n: usize| format!("journal {} line {n}", path.display());
     let mut lines = Lines::new(BufReader::new(open()?), 1);
+    // The header says whether the lines carry checksums: it is read as it is (checked
+    // against its own checksum if it has one).
+    lines.signed = false;
     let Some((_, raw)) = lines.next(path)? else {
         bail!("{}: empty, or its header cut short", at(1));
     };
+    let raw = raw.to_string();
+    let signed = lines.had_sum;
     let header: Header =
-        serde_json::from_str(raw).with_context(|| format!("{}: not a journal header", at(1)))?;
-    if header.journal != VERSION {
-        bail!(
-            "{}: journal version {} (this server reads {VERSION})",
-            at(1),
-            header.journal
-        );
+        serde_json::from_str(&raw).with_context(|| format!("{}: not a journal header", at(1)))?;
+    match (header.journal, signed) {
+        (VERSION, true) | (1, false) => {}
+        (VERSION, false) => bail!("{}: a version {VERSION} header without its checksum", at(1)),
+        (v, _) => bail!(
+            "{}: journal version {v} (this server reads 1 and {VERSION})",
+            at(1)
+        ),
     }
+    lines.signed = signed;
     let limits: Limits =
         toml::from_str(&header.limits).with_context(|| format!("{}: limits", at(1)))?;
     // A journal is a file like any other: its limits are checked as an operator's, and
@@ -355,6 +409,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     let mut file = open()?;
     file.seek(SeekFrom::Start(below))?;
     let mut lines = Lines::new(BufReader::new(file).take(whole - below), first);
+    lines.signed = signed;
     if below == 0 {
         lines.next(path)?; // the header
     }
@@ -538,12 +593,65 @@ mod tests {
             e.contains("bodies") && e.contains("--limit bodies=100000"),
             "{e}"
         );
-        // A header whose work limit is not a number is refused, not read as no limit.
+        // A header whose work limit is not a number is refused, not read as no limit (even
+        // with its checksum made again, as an operator's edit would).
         let nan = text.replacen("step_work = 100000000.0", "step_work = nan", 1);
         assert_ne!(nan, text, "the header spells step_work as expected");
-        std::fs::write(&path, nan).unwrap();
+        std::fs::write(&path, resigned(&nan)).unwrap();
         let e = refusal(&path, &options());
         assert!(e.contains("step_work"), "{e}");
+    }
+
+    /// Every line of `text` with its checksum made again.
+    fn resigned(text: &str) -> String {
+        text.lines()
+            .map(|l| signed(l.rsplit_once('\t').map_or(l, |(t, _)| t)) + "\n")
+            .collect()
+    }
+
+    #[test]
+    fn a_line_changed_after_it_was_written_is_refused_naming_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        journal_of(&path, 4);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.lines().all(|l| unsigned(l).is_some()), "{text}");
+        // One digit of a stepped frame changed: another world, were it replayed.
+        let changed = text.replacen("{\"at\":3}", "{\"at\":5}", 1);
+        assert_ne!(changed, text);
+        std::fs::write(&path, &changed).unwrap();
+        let e = refusal(&path, &options());
+        assert!(e.contains("line 4") && e.contains("checksum"), "{e}");
+        // The header too.
+        let header = text.replacen("\"journaled\"", "\"journalex\"", 1);
+        std::fs::write(&path, &header).unwrap();
+        let e = refusal(&path, &options());
+        assert!(e.contains("line 1") && e.contains("checksum"), "{e}");
+    }
+
+    #[test]
+    fn a_journal_of_version_1_without_checksums_still_resumes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let frame = journal_of(&path, 4);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let v1: String = text
+            .lines()
+            .map(|l| l.rsplit_once('\t').unwrap().0.to_string() + "\n")
+            .collect::<String>()
+            .replacen("\"journal\":2", "\"journal\":1", 1);
+        assert!(!v1.contains('\t') && v1.contains("\"journal\":1"), "{v1}");
+        std::fs::write(&path, &v1).unwrap();
+        let mut resumed = resume(&path, &options()).unwrap();
+        assert_eq!(resumed.host.world.frame(), frame);
+        // The resumed server appends lines with checksums; the mixed journal resumes.
+        resumed.host.step();
+        resumed.journal.stepped(resumed.host.world.frame());
+        drop(resumed);
+        assert_eq!(
+            resume(&path, &options()).unwrap().host.world.frame(),
+            frame + 1
+        );
     }
 
     #[test]

@@ -365,6 +365,7 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
     let journal_mib = journal_text.len() as f64 / (1024.0 * 1024.0);
     let journaled: std::collections::HashSet<(String, String)> = journal_text
         .lines()
+        .filter_map(crate::host::journal::text_of)
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
         .filter_map(|v| {
             Some((
