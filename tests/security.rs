@@ -363,3 +363,44 @@ fn a_flood_of_queries_is_answered_at_the_senders_rate() {
         .expect("another client's query is answered");
     assert!(!snapshot.is_empty());
 }
+
+/// A flood of commands whose cost is the whole world (`reset` of 10 000 statics) slows
+/// the world by at most one such command a frame: steps go on while it lasts.
+#[test]
+fn a_flood_of_whole_world_commands_does_not_stop_the_clock() {
+    let server = Server::start("bench/platforms-10k.toml", "resets", &[]);
+    let client = server.client();
+    let frames = client.frames().unwrap();
+    let reset = Command::Server(ServerCommand::Reset { paused: false });
+    let began = Instant::now();
+    for _ in 0..300 {
+        client.send(&reset).unwrap();
+    }
+    // Stepped frames (a reset's frame 0 is published at once; a step makes frame 1 on) as
+    // they come for 3 s: how many, and the longest wait between two.
+    let (mut stepped, mut last, mut longest) = (0u32, Instant::now(), Duration::ZERO);
+    while began.elapsed() < Duration::from_secs(3) {
+        let frame = frames
+            .recv_timeout(Duration::from_millis(100))
+            .ok()
+            .flatten()
+            .map(|s| {
+                ricochet_protocol::frame::peek_header(&s.payload().to_bytes())
+                    .unwrap()
+                    .frame
+            });
+        if frame.is_some_and(|f| f > 0) {
+            stepped += 1;
+            longest = longest.max(last.elapsed());
+            last = Instant::now();
+        }
+    }
+    longest = longest.max(last.elapsed());
+    eprintln!(
+        "300 resets of 10 000 statics: {stepped} stepped frames in 3 s, longest wait {longest:?}"
+    );
+    assert!(
+        longest < Duration::from_millis(1000) && stepped >= 30,
+        "the clock stalled: {stepped} stepped frames in 3 s, the longest wait {longest:?}"
+    );
+}

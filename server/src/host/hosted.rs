@@ -21,9 +21,10 @@ pub const MAX_STEPS_PER_COMMAND: u32 = 10_000;
 /// Steps asked for and not yet run, at most: a `step` beyond it is refused.
 pub const MAX_PENDING_STEPS: u64 = 100_000;
 
-/// Changed statics are published at most once per this (a new scene's at once): a static
-/// body dragged every frame must not send every static to every viewer every frame. A
-/// snapshot query is always answered with the statics as they are.
+/// Changed statics are published at most once per this, a new scene's too: a static body
+/// dragged every frame, or a `reset` of a world of many statics sent every frame, must not
+/// send every static to every viewer every frame. A snapshot query is always answered with
+/// the statics as they are.
 pub const SNAPSHOT_EVERY: Duration = Duration::from_millis(250);
 
 /// The world, its scene and what the wire remembers of it.
@@ -131,20 +132,15 @@ impl Hosted {
         true
     }
 
-    /// The statics snapshot to publish at `now`: when they changed since they were last
-    /// published, and that was at least [`SNAPSHOT_EVERY`] ago or another scene's. A
+    /// The statics snapshot to publish at `now`: when they changed (or the scene did) since
+    /// they were last published, and that was at least [`SNAPSHOT_EVERY`] ago. A
     /// change held back goes out on the first call after that (the host calls this every
     /// pass of its loop, paused or not).
     pub fn snapshot_due(&mut self, now: Instant) -> Option<Vec<u8>> {
         let current = (self.generation, self.world.statics_revision());
         match self.snapshot_sent {
             Some((_, sent)) if sent == current => return None,
-            Some((at, (generation, _)))
-                if generation == self.generation
-                    && now.saturating_duration_since(at) < SNAPSHOT_EVERY =>
-            {
-                return None
-            }
+            Some((at, _)) if now.saturating_duration_since(at) < SNAPSHOT_EVERY => return None,
             _ => {}
         }
         self.refresh_snapshot();
@@ -381,18 +377,28 @@ mass = 1
     }
 
     #[test]
-    fn a_new_scene_publishes_its_statics_at_once() {
+    fn a_new_scene_publishes_its_statics_at_once_or_when_due() {
         let mut h = hosted();
         let t0 = Instant::now();
         assert!(h.snapshot_due(t0).is_some());
-        let load = Command::Server(ServerCommand::Load {
-            path: None,
-            text: Some(SCENE.replace("[50, 50]", "[60, 50]")),
-        });
-        assert!(h.handle(&load).reply.ok);
-        assert!(
-            h.snapshot_due(t0 + Duration::from_millis(1)).is_some(),
-            "a loaded scene's statics go out with its first frame"
+        let load = |h: &mut Hosted, at: &str| {
+            let load = Command::Server(ServerCommand::Load {
+                path: None,
+                text: Some(SCENE.replace("[50, 50]", at)),
+            });
+            assert!(h.handle(&load).reply.ok);
+        };
+        load(&mut h, "[60, 50]");
+        // Within the interval of the last: held back, then sent when due.
+        assert!(h.snapshot_due(t0 + Duration::from_millis(1)).is_none());
+        let due = t0 + SNAPSHOT_EVERY;
+        assert_eq!(
+            h.snapshot_due(due),
+            Some(wire::statics_snapshot(&h.world)),
+            "the loaded scene's statics go out when due"
         );
+        // Long after: at once.
+        load(&mut h, "[70, 50]");
+        assert!(h.snapshot_due(due + SNAPSHOT_EVERY * 4).is_some());
     }
 }

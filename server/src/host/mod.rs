@@ -11,8 +11,8 @@
 //! Nothing a peer does can stall the step: zenoh's threads only queue what arrives
 //! ([`inbox`]), replies and events leave from a thread of their own ([`outbox`]), frames
 //! and snapshots are published with `Drop` congestion control, at most
-//! [`MAX_COMMANDS_PER_FRAME`] commands and [`MAX_QUERIES_PER_PASS`] queries are served per
-//! pass, and the steps a `step` command asks for run in slices of at most [`STEP_SLICE`],
+//! [`MAX_COMMANDS_PER_FRAME`] commands, and commands for at most [`boundary_budget`] of
+//! wall time, and [`MAX_QUERIES_PER_PASS`] queries are served per pass, and the steps a `step` command asks for run in slices of at most [`STEP_SLICE`],
 //! with other clients served between slices.
 
 pub mod answered;
@@ -51,6 +51,14 @@ pub const MAX_CATCH_UP: u64 = 5;
 /// Commands handled per frame boundary at most; the rest wait for the next one, so a
 /// flood cannot stall the clock.
 pub const MAX_COMMANDS_PER_FRAME: usize = 1000;
+/// Wall time the commands of one frame boundary may take, at most: half the world's step
+/// interval, from 2 to 50 ms. Past it the rest wait for the next boundary, so commands whose
+/// cost is the whole world (`reset`, `load`, `clear`, `select`, `agitate` in a large world)
+/// slow the world's clock by at most one such command a frame instead of stopping it.
+pub fn boundary_budget(step_interval: Duration) -> Duration {
+    (step_interval / 2).clamp(Duration::from_millis(2), Duration::from_millis(50))
+}
+
 /// Queries (state, snapshot, info) answered per pass of the loop at most.
 pub const MAX_QUERIES_PER_PASS: usize = 64;
 /// Wall time the steps of `step` commands may take before the host serves its other
@@ -384,7 +392,11 @@ pub fn run(opts: HostOptions) -> Result<()> {
 
         // The frame boundary: commands and requests that arrived, up to a bound.
         let was_paused = host.paused;
+        let (boundary, budget) = (Instant::now(), boundary_budget(Duration::from_nanos(dt_ns)));
         for _ in 0..MAX_COMMANDS_PER_FRAME {
+            if boundary.elapsed() >= budget {
+                break;
+            }
             let Some(incoming) = inbox.next() else {
                 break;
             };
