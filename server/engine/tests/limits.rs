@@ -9,6 +9,7 @@ use common::*;
 use ricochet_engine::action::{Action, Direction};
 use ricochet_engine::prelude::*;
 use ricochet_engine::scene;
+use ricochet_engine::world::Limits;
 
 /// The shipped stack of 20 under the impulse solver (2 sub-steps) with sleeping on and
 /// tight limits, stepped until it sleeps.
@@ -185,4 +186,45 @@ fn the_first_steps_settle_solve_is_priced() {
     assert!(e.contains("step_work"), "{e}");
     // A modest settle solve is accepted.
     scene::parse(&text, &path, &["settle_iterations=20".to_string()]).unwrap();
+}
+
+#[test]
+fn particles_are_priced_against_the_step_budget() {
+    // The particles demo (particles meet the minions and platforms) under a work limit
+    // half again its own estimate: a few particles fit, a spawn or an emitter that would
+    // double the step's work does not, named, and changes nothing.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/particles.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let free = scene::parse(&text, &path, &[]).unwrap();
+    let base = free.work_estimate(&free.config);
+    let limits = Limits {
+        step_work: base * 1.5,
+        ..Limits::default()
+    };
+    let mut w = scene::parse_with(&text, &path, &[], &limits).unwrap();
+    w.apply(&Action::SpawnParticles {
+        preset: "fire".into(),
+        at: [50.0, 60.0],
+        count: 1,
+    })
+    .unwrap();
+    let before = state(&w);
+    let many = base as u32;
+    for action in [
+        Action::SpawnParticles {
+            preset: "fire".into(),
+            at: [50.0, 60.0],
+            count: many,
+        },
+        Action::StartEmitter {
+            preset: "fire".into(),
+            count: many,
+            at: [50.0, 60.0],
+        },
+    ] {
+        let e = w.apply(&action).unwrap_err().to_string();
+        assert!(e.contains("step_work") && e.contains("pair tests"), "{e}");
+        assert_eq!(state(&w), before, "a refused spawn changed the world");
+    }
+    assert!(w.work_estimate(&w.config) <= limits.step_work);
 }

@@ -224,12 +224,18 @@ impl World {
     /// it may touch, plus one unit per body and particle moved. An upper estimate used to
     /// refuse settings and scenes that would stall the world, not a measured figure.
     pub fn work_estimate(&self, config: &WorldConfig) -> f64 {
+        self.work_with(config, 0.0)
+    }
+
+    /// [`World::work_estimate`] with `more_particles` particles besides the world's.
+    fn work_with(&self, config: &WorldConfig, more_particles: f64) -> f64 {
         let passes = config.passes_per_step() as f64;
         let size = |side: Side| match side {
             Side::Group(g) => self.groups[g as usize].members.len() as f64,
             Side::Particles => 0.0,
         };
-        let particles = self.particles.len() as f64
+        let particles = more_particles
+            + self.particles.len() as f64
             + self
                 .emitters
                 .iter()
@@ -268,7 +274,17 @@ impl World {
 
     /// Refuses `config` if a step under it would cost more than the world's work limit.
     pub fn check_work(&self, config: &WorldConfig) -> Result<(), LimitError> {
-        let work = self.work_estimate(config);
+        self.check_work_with(config, 0)
+    }
+
+    /// Refuses `n` more particles (a spawn's, an emitter's to come) if a step with them
+    /// would cost more than the world's work limit: particles are priced like settings.
+    pub(super) fn check_work_with(
+        &self,
+        config: &WorldConfig,
+        more_particles: u64,
+    ) -> Result<(), LimitError> {
+        let work = self.work_with(config, more_particles as f64);
         if work > self.limits.step_work {
             return Err(LimitError::Invalid {
                 name: "step_work".into(),

@@ -55,7 +55,7 @@ impl World {
                 self.limits.particles,
             ));
         }
-        Ok(())
+        self.check_work_with(&self.config, n)
     }
 
     /// Refuses one more emitter of `count` particles if it would exceed a limit.
