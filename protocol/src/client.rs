@@ -165,13 +165,7 @@ impl Client {
         }
         if servers.len() > 1 {
             let claimed = std::mem::take(&mut *servers);
-            return Err(anyhow!(
-                "world `{}` is claimed by {} peers holding its liveliness token ({}): \
-                 refusing their replies, as the server cannot be told apart (see docs/security.md)",
-                self.keys.world,
-                claimed.len(),
-                claimed.join(", "),
-            ));
+            return Err(anyhow!(claimed_twice(&self.keys.world, &claimed)));
         }
         Ok(servers.first().is_some_and(|s| s == zid))
     }
@@ -366,4 +360,45 @@ fn alive_tokens(session: &Session, key: &str, timeout: Duration) -> Result<Vec<(
     tokens.sort();
     tokens.dedup();
     Ok(tokens)
+}
+/// The refusal of a world whose token several peers hold, naming a few of them: a peer
+/// holding thousands of tokens must not make the error itself a flood.
+fn claimed_twice(world: &str, claimed: &[String]) -> String {
+    let named: Vec<String> = claimed
+        .iter()
+        .take(3)
+        .map(|zid| ricochet_engine::world::short(zid, 40))
+        .collect();
+    let more = match claimed.len().saturating_sub(named.len()) {
+        0 => String::new(),
+        n => format!(" and {n} more"),
+    };
+    format!(
+        "world `{world}` is claimed by {} peers holding its liveliness token ({}{more}): \
+         refusing their replies, as the server cannot be told apart (see docs/security.md)",
+        claimed.len(),
+        named.join(", "),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_world_claimed_by_thousands_is_refused_in_a_few_words() {
+        let two = ["a1".to_string(), "b2".to_string()];
+        let e = claimed_twice("w", &two);
+        assert!(e.contains("claimed by 2 peers") && e.contains("(a1, b2)"), "{e}");
+        let many: Vec<String> = (0..5000).map(|k| format!("{k:032x}")).collect();
+        let e = claimed_twice("w", &many);
+        assert!(
+            e.contains("claimed by 5000 peers") && e.contains("and 4997 more") && e.len() < 400,
+            "{} bytes: {e}",
+            e.len()
+        );
+        let hostile = ["\u{1b}[2J".repeat(100)];
+        let e = claimed_twice("w", &[hostile[0].clone(), "x".into()]);
+        assert!(!e.chars().any(char::is_control) && e.len() < 400, "{e}");
+    }
 }
