@@ -361,6 +361,7 @@ fn alive_tokens(session: &Session, key: &str, timeout: Duration) -> Result<Vec<(
     tokens.dedup();
     Ok(tokens)
 }
+
 /// The refusal of a world whose token several peers hold, naming a few of them: a peer
 /// holding thousands of tokens must not make the error itself a flood.
 fn claimed_twice(world: &str, claimed: &[String]) -> String {
@@ -389,7 +390,10 @@ mod tests {
     fn a_world_claimed_by_thousands_is_refused_in_a_few_words() {
         let two = ["a1".to_string(), "b2".to_string()];
         let e = claimed_twice("w", &two);
-        assert!(e.contains("claimed by 2 peers") && e.contains("(a1, b2)"), "{e}");
+        assert!(
+            e.contains("claimed by 2 peers") && e.contains("(a1, b2)"),
+            "{e}"
+        );
         let many: Vec<String> = (0..5000).map(|k| format!("{k:032x}")).collect();
         let e = claimed_twice("w", &many);
         assert!(
