@@ -139,6 +139,12 @@ impl Command {
             .as_str()
             .ok_or("`do` must be a string")?;
         let name = short(name, 64);
+        // serde ignores unknown fields of a variant without any (`pause`, `deselect`):
+        // every field given must be one the command has.
+        let given: Vec<String> = value
+            .as_object()
+            .map(|o| o.keys().cloned().collect())
+            .unwrap_or_default();
         let command = if SERVER_COMMANDS.contains(&name.as_str()) {
             serde_json::from_value(value)
                 .map(Command::Server)
@@ -159,6 +165,10 @@ impl Command {
                     }
                 })?
         };
+        let known = serde_json::to_value(&command).map_err(|e| e.to_string())?;
+        if let Some(field) = given.iter().find(|k| known.get(k.as_str()).is_none()) {
+            return Err(format!("`{name}`: unknown field `{}`", short(field, 64)));
+        }
         for (field, text) in command.names() {
             if text.len() > MAX_NAME_BYTES {
                 return Err(format!(
@@ -478,6 +488,8 @@ mod tests {
             (r#"{"do":"press","dir":"sideways"}"#, "sideways"),
             (r#"{"do":"drag","to":[1,2],"speed":3}"#, "speed"),
             (r#"{"do":"step","n":-1}"#, "step"),
+            (r#"{"do":"pause","nope":1}"#, "unknown field `nope`"),
+            (r#"{"do":"deselect","to":[1,2]}"#, "unknown field `to`"),
         ] {
             let e = Command::parse(text.as_bytes()).unwrap_err();
             assert!(e.contains(needle), "{text}: {e}");
