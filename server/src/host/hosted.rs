@@ -277,9 +277,7 @@ impl Hosted {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::host::inbox::InboxLimits;
     use ricochet_protocol::command::Action;
-    use ricochet_protocol::net::Network;
 
     const SCENE: &str = r#"
 [world]
@@ -304,24 +302,7 @@ mass = 1
 "#;
 
     fn hosted() -> Hosted {
-        let opts = HostOptions {
-            scene: None,
-            world: "statics".into(),
-            network: Network::default(),
-            paused: false,
-            overrides: Vec::new(),
-            keyframe_interval: 60,
-            max_frames: None,
-            dump: None,
-            scenes_dir: None,
-            limits: Limits::default(),
-            max_rate: 1000.0,
-            inbox: InboxLimits::default(),
-            journal: None,
-            resume: None,
-            accuracy: None,
-            accuracy_cache: None,
-        };
+        let opts = HostOptions::for_tests("statics");
         Hosted::load(SCENE.into(), "statics.toml".into(), &opts).unwrap()
     }
 

@@ -491,30 +491,10 @@ fn check_frame(host: &Hosted, frame: u64, at: &str) -> Result<()> {
 mod tests {
     use std::io::Write as _;
 
-    use ricochet_protocol::net::Network;
-
     use super::*;
-    use crate::host::inbox::InboxLimits;
 
     fn options() -> HostOptions {
-        HostOptions {
-            scene: None,
-            world: "journaled".into(),
-            network: Network::default(),
-            paused: false,
-            overrides: Vec::new(),
-            keyframe_interval: 60,
-            max_frames: None,
-            dump: None,
-            scenes_dir: None,
-            limits: Limits::default(),
-            max_rate: 1000.0,
-            inbox: InboxLimits::default(),
-            journal: None,
-            resume: None,
-            accuracy: None,
-            accuracy_cache: None,
-        }
+        HostOptions::for_tests("journaled")
     }
 
     /// A journal of `steps` stepped frames of the shipped bounce scene, and the world's

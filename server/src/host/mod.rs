@@ -115,6 +115,31 @@ pub struct HostOptions {
     pub accuracy_cache: Option<PathBuf>,
 }
 
+impl HostOptions {
+    /// A world named `world` with every default and nothing on disk (for tests).
+    #[cfg(test)]
+    pub(crate) fn for_tests(world: &str) -> HostOptions {
+        HostOptions {
+            scene: None,
+            world: world.into(),
+            network: Network::default(),
+            paused: false,
+            overrides: Vec::new(),
+            keyframe_interval: 60,
+            max_frames: None,
+            dump: None,
+            scenes_dir: None,
+            limits: Limits::default(),
+            max_rate: 1000.0,
+            inbox: InboxLimits::default(),
+            journal: None,
+            resume: None,
+            accuracy: None,
+            accuracy_cache: None,
+        }
+    }
+}
+
 /// The server's zenoh configuration: the network's, with the receive size bounded to what
 /// a command needs and a blocked send bounded in time (unless a configuration file was
 /// given: then its values hold, and `assets/zenoh/server.json5` sets both).
