@@ -9,14 +9,14 @@ set -u
 runs=${1:-10}
 cd "$(dirname "$0")/../.."
 export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/ricochet-target}
-cargo test --workspace -j2 --no-run >/dev/null 2>&1 || { echo "the tests do not build"; exit 1; }
+cargo test --release --workspace -j2 --no-run >/dev/null 2>&1 || { echo "the tests do not build"; exit 1; }
 passed=0
 for n in $(seq 1 "$runs"); do
   hogs=()
   for _ in 1 2; do timeout 600 sh -c 'while :; do :; done' & hogs+=($!); done
   began=$(date +%s)
   log=$(mktemp)
-  timeout 900 cargo test --workspace -j2 --test viewer >"$log" 2>&1
+  timeout 900 cargo test --release --workspace -j2 --test viewer >"$log" 2>&1
   rc=$?
   kill "${hogs[@]}" 2>/dev/null
   wait "${hogs[@]}" 2>/dev/null

@@ -25,7 +25,7 @@ pub fn bin(name: &str) -> PathBuf {
     let p = target_dir().join(format!("{name}{}", std::env::consts::EXE_SUFFIX));
     assert!(
         p.exists(),
-        "{} is missing: run the tests with `cargo test --workspace`",
+        "{} is missing: run the tests with `cargo test --release --workspace`",
         p.display()
     );
     p
