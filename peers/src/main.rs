@@ -6,6 +6,7 @@
 
 mod box2d;
 mod engine;
+mod limit;
 mod rapier;
 mod run;
 mod scene;
@@ -46,6 +47,8 @@ fn main() -> Result<()> {
         None => default_scenes()?,
     };
     let rounds = args.rounds as usize;
+    eprintln!("measuring this machine's memory bandwidth and peak arithmetic (one core)");
+    let limits = limit::Machine::measure();
     let files = scene::scene_files(&dir, args.only.as_deref())?;
     let mut results = Vec::new();
     for path in &files {
@@ -61,6 +64,7 @@ fn main() -> Result<()> {
         boxdd_version: locked_version("boxdd")?,
         rapier_version: locked_version("rapier2d")?,
         ricochet: WorldConfig::default(),
+        limits,
     };
     table::write(&args.out, &setup, &results)?;
     eprintln!("wrote {}/peers.md and peers.csv", args.out.display());

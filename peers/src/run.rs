@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use ricochet_engine::criteria::{Figures, Judgement, Monitor};
 
 use crate::engine::EngineKind;
+use crate::limit::Work;
 use crate::scene::Scene;
 
 /// One engine's run of a scene.
@@ -18,6 +19,10 @@ pub struct Run {
     pub median_ms: f64,
     pub verdict: Vec<Judgement>,
     pub figures: Figures,
+    /// The final state's digest (Ricochet only).
+    pub digest: Option<u64>,
+    /// The solver's work over the run (Ricochet only).
+    pub work: Option<Work>,
 }
 
 /// Builds the scene fresh in `engine` (not timed), then steps it for the criteria's steps,
@@ -43,6 +48,8 @@ pub fn run(engine: EngineKind, scene: &Scene) -> Result<Run> {
         median_ms: median(&mut times),
         verdict: monitor.verdict(),
         figures: monitor.figures().clone(),
+        digest: built.digest(),
+        work: built.work(),
     })
 }
 
@@ -57,6 +64,10 @@ pub struct Outcome {
     /// same, else `consistent` is false).
     pub verdict: Vec<Judgement>,
     pub consistent: bool,
+    /// The first round's final-state digest (Ricochet only).
+    pub digest: Option<u64>,
+    /// The first round's solver work (Ricochet only).
+    pub work: Option<Work>,
 }
 
 impl Outcome {
@@ -67,8 +78,8 @@ impl Outcome {
 }
 
 /// Every engine's outcome on `scene` over `rounds` rounds, in [`EngineKind::ALL`] order.
-/// Round r runs the engines starting from the r-th, so each engine goes first, second
-/// and third in turn.
+/// Round r runs the engines starting from the r-th, so each engine takes every place of
+/// the order in turn.
 pub fn rounds(scene: &Scene, rounds: usize) -> Result<Vec<Outcome>> {
     let engines = EngineKind::ALL;
     let mut runs: Vec<Vec<Run>> = engines.iter().map(|_| Vec::new()).collect();
@@ -97,13 +108,17 @@ pub fn rounds(scene: &Scene, rounds: usize) -> Result<Vec<Outcome>> {
         .zip(runs)
         .map(|(&engine, runs)| {
             let first = &runs[0];
-            let consistent = runs.iter().all(|r| r.figures == first.figures);
+            let consistent = runs
+                .iter()
+                .all(|r| r.figures == first.figures && r.digest == first.digest);
             Outcome {
                 engine,
                 mean_ms: median(&mut runs.iter().map(|r| r.mean_ms).collect::<Vec<_>>()),
                 median_ms: median(&mut runs.iter().map(|r| r.median_ms).collect::<Vec<_>>()),
                 verdict: first.verdict.clone(),
                 consistent,
+                digest: first.digest,
+                work: first.work,
             }
         })
         .collect())

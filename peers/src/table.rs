@@ -34,6 +34,8 @@ pub struct Setup {
     pub rapier_version: String,
     /// Ricochet's settings, as the suite's scenes get them.
     pub ricochet: WorldConfig,
+    /// This machine's bandwidth and peak arithmetic, measured before the scenes ran.
+    pub limits: crate::limit::Machine,
 }
 
 /// One scene's outcomes, engines in [`EngineKind::ALL`] order.
@@ -92,14 +94,15 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
         s,
         "Written by `{}` (peers/src/table.rs); do not edit by hand.\n\n\
          # Ricochet against Box2D v3 and rapier2d on the suite of scene kinds\n\n\
-         Every scene of `assets/scenes/suite/` run in the three engines, alternated: each \
-         of {} rounds runs every engine once on a fresh build of the scene, the order \
-         rotated every round. Each step is timed from the first (start-up included, no \
+         Every scene of `assets/scenes/suite/` run in the three engines (Ricochet on one \
+         thread and on two), alternated: each of {} rounds runs every engine once on a \
+         fresh build of the scene, the order rotated every round. Each step is timed from the first (start-up included, no \
          warm-up); a run's mean and median ms a step are taken, then the median of each \
          over the rounds. After every step the dynamic bodies' positions and velocities \
          go to the scene's criteria monitor (`ricochet_engine::criteria::Monitor`), so \
          every engine is judged by the same code.\n\n\
-         Machine: {}. Every engine on one thread.\n\n\
+         Machine: {}. Every engine on one thread; Ricochet on two as well (the row \
+         \"Ricochet, 2 threads\": the same settings with `threads = 2`).\n\n\
          ## Engines\n\n\
          - **Ricochet**: the default (`WorldConfig::default`): solver {:?}, {} sub-steps of \
          {} passes, warm starting {}, resting load {}, split impulses {}, continuous \
@@ -154,13 +157,15 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
     for r in results {
         scene_table(&mut s, r);
     }
+    let names: Vec<&str> = EngineKind::ALL.iter().map(|e| e.name()).collect();
     let _ = writeln!(
         s,
         "## Summary\n\n\
          Holds: every criterion of the scene holds. Ratio: Box2D's mean time a step over \
          Ricochet's (above 1: Ricochet is faster).\n\n\
-         | scene | holds: Ricochet / Box2D / rapier | Box2D / Ricochet mean time |\n\
-         |---|---|---:|"
+         | scene | holds: {} | Box2D / Ricochet mean time | Box2D / Ricochet on 2 threads |\n\
+         |---|---|---:|---:|",
+        names.join(" / ")
     );
     for r in results {
         let holds: Vec<&str> = EngineKind::ALL
@@ -169,13 +174,104 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {} | {:.2} |",
+            "| {} | {} | {:.2} | {:.2} |",
             r.name,
             holds.join(" / "),
-            r.box2d_ratio(EngineKind::Ricochet)
+            r.box2d_ratio(EngineKind::Ricochet),
+            r.box2d_ratio(EngineKind::Ricochet2)
         );
     }
+    threads_table(&mut s, results);
+    limit_table(&mut s, ctx, results);
     s
+}
+
+/// Ricochet on two threads against one: the speed-up and whether the final states agree
+/// bit for bit.
+fn threads_table(s: &mut String, results: &[SceneResult]) {
+    let _ = writeln!(
+        s,
+        "\n## Two threads\n\n\
+         Ricochet's default with `threads = 2` against `threads = 1`, in the same rounds: \
+         the mean time a step over the whole run, the speed-up (one thread's time over two \
+         threads'), and whether the two runs end in the same state bit for bit (every \
+         body's position and velocity). Work is split only where it splits without \
+         changing a bit (blocks of contacts that share no moving body, chunks of at \
+         least {} particles), so small scenes stay on one thread.\n\n\
+         | scene | 1 thread ms/step | 2 threads ms/step | speed-up | same bits |\n\
+         |---|---:|---:|---:|---|",
+        ricochet_engine::parallel::MIN_SPLIT
+    );
+    for r in results {
+        let one = r.outcome(EngineKind::Ricochet);
+        let two = r.outcome(EngineKind::Ricochet2);
+        let same = one.digest.is_some() && one.digest == two.digest;
+        let _ = writeln!(
+            s,
+            "| {} | {:.3} | {:.3} | {:.2} | {} |",
+            r.name,
+            one.mean_ms,
+            two.mean_ms,
+            one.mean_ms / two.mean_ms,
+            yes_no(same)
+        );
+    }
+}
+
+/// How far Ricochet's one-thread step is from this machine's limits.
+fn limit_table(s: &mut String, ctx: &Setup, results: &[SceneResult]) {
+    use crate::limit::*;
+    let m = &ctx.limits;
+    let _ = writeln!(
+        s,
+        "\n## Distance to the machine's limits\n\n\
+         This machine on one core, measured by this run: memory bandwidth {:.1} GB/s (a \
+         triad `a = b + s c` over three arrays of 64 MiB, the best of 5; reads and writes \
+         counted), peak arithmetic {:.1} Gflop/s ({}, independent multiply-adds, the best \
+         of 5).\n\n\
+         Ricochet's work a step, from a model: the engine counts each step's contacts and \
+         velocity passes as they run (`StepStats`), and the model prices a contact in a \
+         pass at {} bytes (its {}-byte row read, its impulses written, both {}-byte \
+         bodies read and their velocities written) and {} double operations (counted by \
+         hand in `solve_contact`), and a moving body in a sub-step at {} bytes and {} \
+         operations. The contact search and the rest of the step are not priced, so the \
+         work and the fractions are lower bounds. The fractions: the work a step over \
+         the measured mean time a step (whole run, one thread), over the machine's \
+         figure.\n\n\
+         | scene | contacts a step | contact visits a step | MB a step | Mflop a step | mean ms/step | GB/s | share of bandwidth | Gflop/s | share of peak |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        m.bandwidth / 1e9,
+        m.peak_flops / 1e9,
+        m.peak_kind,
+        BYTES_PER_CONTACT_PASS,
+        ricochet_engine::dynamics::impulse::CONTACT_ROW_BYTES,
+        ricochet_engine::dynamics::impulse::SOLVER_BODY_BYTES,
+        FLOPS_PER_CONTACT_PASS,
+        BYTES_PER_BODY_SUBSTEP,
+        FLOPS_PER_BODY_SUBSTEP,
+    );
+    for r in results {
+        let one = r.outcome(EngineKind::Ricochet);
+        let Some(w) = one.work else { continue };
+        let steps = w.steps.max(1) as f64;
+        let seconds = one.mean_ms / 1e3;
+        let bytes = w.bytes_per_step();
+        let flops = w.flops_per_step();
+        let _ = writeln!(
+            s,
+            "| {} | {:.0} | {:.0} | {:.3} | {:.3} | {:.3} | {:.2} | {:.1}% | {:.3} | {:.2}% |",
+            r.name,
+            w.contacts as f64 / steps,
+            w.contact_passes as f64 / steps,
+            bytes / 1e6,
+            flops / 1e6,
+            one.mean_ms,
+            bytes / seconds / 1e9,
+            100.0 * bytes / seconds / m.bandwidth,
+            flops / seconds / 1e9,
+            100.0 * flops / seconds / m.peak_flops,
+        );
+    }
 }
 
 fn scene_table(s: &mut String, r: &SceneResult) {
@@ -226,6 +322,9 @@ fn write_csv(path: &Path, ctx: &Setup, results: &[SceneResult]) -> Result<()> {
         "box2d_over_engine",
         "holds",
         "rounds_agree",
+        "contacts_per_step",
+        "model_bytes_per_step",
+        "model_flops_per_step",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -250,6 +349,14 @@ fn write_csv(path: &Path, ctx: &Setup, results: &[SceneResult]) -> Result<()> {
                 o.holds().to_string(),
                 o.consistent.to_string(),
             ];
+            match o.work {
+                Some(w) => row.extend([
+                    format!("{:.1}", w.contacts as f64 / w.steps.max(1) as f64),
+                    format!("{:.0}", w.bytes_per_step()),
+                    format!("{:.0}", w.flops_per_step()),
+                ]),
+                None => row.extend([String::new(), String::new(), String::new()]),
+            }
             for name in CRITERIA {
                 match o.verdict.iter().find(|j| j.name == name) {
                     Some(j) => {

@@ -208,6 +208,14 @@ impl ContactCache {
     }
 }
 
+/// Bytes of one contact row as the velocity passes stream it (a cost model's figure: each
+/// pass reads every row and writes its impulses back).
+pub const CONTACT_ROW_BYTES: usize = std::mem::size_of::<Contact>();
+
+/// Bytes of one moving body as the velocity passes read it (velocity, split-impulse
+/// velocity, displacement, inverse mass).
+pub const SOLVER_BODY_BYTES: usize = std::mem::size_of::<SolverBody>();
+
 /// What the solver did in one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ImpulseReport {
