@@ -43,6 +43,9 @@ pub struct Work {
     pub contact_passes: u64,
     /// Moving bodies times sub-steps, summed over the steps.
     pub body_substeps: u64,
+    /// The largest over the steps of the bytes the passes stream: every contact row and
+    /// every moving body.
+    pub working_set: u64,
 }
 
 impl Work {
@@ -54,6 +57,8 @@ impl Work {
         self.contacts += stats.contacts;
         self.contact_passes += stats.contacts * stats.relaxation_iterations;
         self.body_substeps += moving * u64::from(world.config.substeps.max(1));
+        let set = stats.contacts * CONTACT_ROW_BYTES as u64 + moving * SOLVER_BODY_BYTES as u64;
+        self.working_set = self.working_set.max(set);
     }
 
     /// Bytes the model prices a step at, on average over the run.
@@ -82,6 +87,8 @@ pub struct Machine {
     pub peak_flops: f64,
     /// How the peak was reached ("AVX2 FMA, 4 lanes" or "scalar").
     pub peak_kind: &'static str,
+    /// One core's level-2 cache in bytes, as the system reports it (None: not reported).
+    pub l2_cache: Option<u64>,
 }
 
 impl Machine {
@@ -91,8 +98,22 @@ impl Machine {
             bandwidth: bandwidth(),
             peak_flops,
             peak_kind,
+            l2_cache: l2_cache(),
         }
     }
+}
+
+/// The level-2 cache of cpu0 from Linux's sysfs (`4096K`), in bytes.
+fn l2_cache() -> Option<u64> {
+    let text = std::fs::read_to_string("/sys/devices/system/cpu/cpu0/cache/index2/size").ok()?;
+    let text = text.trim();
+    let (digits, unit) = text.split_at(text.find(|c: char| !c.is_ascii_digit())?);
+    let n: u64 = digits.parse().ok()?;
+    Some(match unit {
+        "K" => n << 10,
+        "M" => n << 20,
+        _ => return None,
+    })
 }
 
 /// The best triad rate over 5 runs on three arrays of 64 MiB each.
@@ -184,6 +205,7 @@ mod tests {
             contacts: 10,
             contact_passes: 40,
             body_substeps: 8,
+            working_set: 0,
         };
         assert_eq!(
             w.flops_per_step(),

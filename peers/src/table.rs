@@ -222,13 +222,39 @@ fn threads_table(s: &mut String, results: &[SceneResult]) {
 fn limit_table(s: &mut String, ctx: &Setup, results: &[SceneResult]) {
     use crate::limit::*;
     let m = &ctx.limits;
+    let too_big: Vec<&str> = results
+        .iter()
+        .filter(|r| {
+            let w = r.outcome(EngineKind::Ricochet).work;
+            match (w, m.l2_cache) {
+                (Some(w), Some(l2)) => w.working_set > l2,
+                _ => false,
+            }
+        })
+        .map(|r| r.name.as_str())
+        .collect();
+    let fit = match (m.l2_cache, too_big.is_empty()) {
+        (None, _) => "The cache's size is not known here.".to_string(),
+        (Some(_), true) => "Every scene's fits in the level-2 cache: the passes read \
+            their bytes from the caches, not from memory."
+            .to_string(),
+        (Some(_), false) => format!(
+            "Larger than the level-2 cache: {}; the others fit, and their passes read \
+             their bytes from the caches, not from memory.",
+            too_big.join(", ")
+        ),
+    };
+    let l2 = match m.l2_cache {
+        Some(b) => format!("{} KiB", b >> 10),
+        None => "not reported".to_string(),
+    };
     let _ = writeln!(
         s,
         "\n## Distance to the machine's limits\n\n\
          This machine on one core, measured by this run: memory bandwidth {:.1} GB/s (a \
          triad `a = b + s c` over three arrays of 64 MiB, the best of 5; reads and writes \
          counted), peak arithmetic {:.1} Gflop/s ({}, independent multiply-adds, the best \
-         of 5).\n\n\
+         of 5). Level-2 cache of a core: {l2}.\n\n\
          Ricochet's work a step, from a model: the engine counts each step's contacts and \
          velocity passes as they run (`StepStats`), and the model prices a contact in a \
          pass at {} bytes (its {}-byte row read, its impulses written, both {}-byte \
@@ -237,9 +263,13 @@ fn limit_table(s: &mut String, ctx: &Setup, results: &[SceneResult]) {
          operations. The contact search and the rest of the step are not priced, so the \
          work and the fractions are lower bounds. The fractions: the work a step over \
          the measured mean time a step (whole run, one thread), over the machine's \
-         figure.\n\n\
-         | scene | contacts a step | contact visits a step | MB a step | Mflop a step | mean ms/step | GB/s | share of bandwidth | Gflop/s | share of peak |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+         figure. The working set is every contact row and moving body, at its largest \
+         over the run. {fit} A share of bandwidth therefore compares the passes' traffic \
+         with what memory alone could feed; a small share of peak arithmetic says the \
+         passes wait on their data (each contact reads the bodies the one before it \
+         wrote), not on arithmetic.\n\n\
+         | scene | contacts a step | contact visits a step | working set KiB | MB a step | Mflop a step | mean ms/step | GB/s | share of bandwidth | Gflop/s | share of peak |\n\
+         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
         m.bandwidth / 1e9,
         m.peak_flops / 1e9,
         m.peak_kind,
@@ -259,10 +289,11 @@ fn limit_table(s: &mut String, ctx: &Setup, results: &[SceneResult]) {
         let flops = w.flops_per_step();
         let _ = writeln!(
             s,
-            "| {} | {:.0} | {:.0} | {:.3} | {:.3} | {:.3} | {:.2} | {:.1}% | {:.3} | {:.2}% |",
+            "| {} | {:.0} | {:.0} | {:.0} | {:.3} | {:.3} | {:.3} | {:.2} | {:.1}% | {:.3} | {:.2}% |",
             r.name,
             w.contacts as f64 / steps,
             w.contact_passes as f64 / steps,
+            w.working_set as f64 / 1024.0,
             bytes / 1e6,
             flops / 1e6,
             one.mean_ms,

@@ -115,6 +115,12 @@ pub struct WorldConfig {
     pub substeps: u32,
     /// Velocity iterations of the impulse solver per sub-step.
     pub impulse_iterations: u32,
+    /// Biased passes a sub-step may add after its `impulse_iterations` while its last
+    /// pass still changed a contact's normal velocity by more than
+    /// [`crate::dynamics::impulse::CONVERGED_CHANGE`] body sizes a second (an impact
+    /// travelling down a pile): resting scenes run none, and each added pass is counted.
+    /// 0: always exactly `impulse_iterations`.
+    pub adaptive_iterations: u32,
     /// Start the impulse solver from the previous step's impulses.
     pub warm_starting: bool,
     /// Share of the penetration (beyond `slop`) the impulse solver removes per second per
@@ -221,6 +227,7 @@ impl Default for WorldConfig {
             broad_phase: super::broad_phase::BroadPhase::Grid,
             substeps: 2,
             impulse_iterations: 2,
+            adaptive_iterations: 6,
             warm_starting: true,
             baumgarte: 0.2,
             // A pile formed by falling rests each contact this deep: 1e-3 left a dropped
@@ -319,6 +326,7 @@ impl WorldConfig {
                 Solver::Relaxation => self.relaxation_iterations as u64,
                 Solver::Impulses => {
                     self.impulse_iterations.max(self.start_iterations) as u64
+                        + self.adaptive_iterations as u64
                         + self.relax_iterations as u64
                         + self.settle_iterations as u64
                 }
@@ -367,6 +375,12 @@ impl WorldConfig {
             return Err(invalid(
                 "impulse_iterations",
                 format!("{} must be 1 to 10000", self.impulse_iterations),
+            ));
+        }
+        if self.adaptive_iterations > 10_000 {
+            return Err(invalid(
+                "adaptive_iterations",
+                format!("{} must be 0 to 10000", self.adaptive_iterations),
             ));
         }
         if self.start_iterations > 100_000 || self.start_frames > 1_000_000 {

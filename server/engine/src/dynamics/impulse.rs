@@ -48,6 +48,12 @@ pub const RESTITUTION_SPEED: f64 = 1.0;
 /// kinetic energy that way at 4 sub-steps; resting contacts (slower) keep warm starting.
 pub const WARM_START_SPEED: f64 = RESTITUTION_SPEED;
 
+/// A sub-step's passes have converged when its last one changed no contact's normal
+/// velocity by more than this many body sizes a second (the smallest body a contact of
+/// the frame touches): a resting pile, warm-started, changes far less; an impact still
+/// travelling down a column far more. Past it, up to `adaptive_iterations` more passes run.
+pub const CONVERGED_CHANGE: f64 = 1.0;
+
 pub use crate::geometry::grid::KeyMap;
 
 /// The solver's settings for one frame.
@@ -55,6 +61,9 @@ pub use crate::geometry::grid::KeyMap;
 pub struct ImpulseParams {
     /// Biased velocity iterations per sub-step.
     pub iterations: u32,
+    /// Biased passes a sub-step may add while the last one has not converged (see
+    /// [`CONVERGED_CHANGE`]).
+    pub adaptive_iterations: u32,
     /// Velocity iterations without position bias per sub-step, after the positions move
     /// (they take out the velocity the bias added, so pushing out does not launch).
     pub relax_iterations: u32,
@@ -336,6 +345,13 @@ pub fn solve_frame(
         load::rest(buckets, sb, gain, bodies, slotted, h, up);
     }
     let bias = Biases::of(&params, h);
+    // The change under which a pass has converged, in the units of the smallest contact.
+    let converged = CONVERGED_CHANGE
+        * buckets
+            .iter()
+            .flatten()
+            .map(|c| c.max_push / MAX_PUSH_OUT)
+            .fold(f64::INFINITY, f64::min);
     // One block (and the boundary) has nothing to split: the frame stays on the calling
     // thread (no hand-over to the pool for a small world that asked for threads).
     let threads = if buckets.len() > 2 { params.threads } else { 1 };
@@ -356,6 +372,7 @@ pub fn solve_frame(
                 &params,
                 bias,
                 h,
+                converged,
                 last_step,
                 &mut report,
             );

@@ -94,6 +94,7 @@ settings! {
     BroadPhase(BroadPhase) => broad_phase,
     Substeps(u32) => substeps,
     ImpulseIterations(u32) => impulse_iterations,
+    AdaptiveIterations(u32) => adaptive_iterations,
     WarmStarting(bool) => warm_starting,
     Baumgarte(f64) => baumgarte,
     Slop(f64) => slop,

@@ -278,6 +278,7 @@ impl World {
         let flagged = self.flagged.clone();
         let config = self.config.clone();
         self.config.impulse_iterations = config.settle_iterations;
+        self.config.adaptive_iterations = 0;
         self.config.start_iterations = 0;
         self.config.relax_iterations = 0;
         self.solve_impulses(&mut StepStats::default(), dt);
@@ -308,6 +309,7 @@ impl World {
         let config = &self.config;
         let params = ImpulseParams {
             iterations: config.impulse_iterations_at(self.frame),
+            adaptive_iterations: config.adaptive_iterations,
             relax_iterations: config.relax_iterations,
             warm_starting: config.warm_starting,
             baumgarte: config.baumgarte,

@@ -33,8 +33,9 @@ pub(super) fn warm_start(threads: u32, sb: &mut [SolverBody], buckets: &mut [Vec
 }
 
 /// The biased passes: `iterations` of them, the position bias pushing touching contacts
-/// apart (into pseudo-velocities with split impulses). The frame's last pass measures the
-/// residual when no relax pass follows it.
+/// apart (into pseudo-velocities with split impulses), then up to `adaptive_iterations`
+/// more while the last one changed a contact's normal velocity by more than `converged`.
+/// The frame's last pass measures the residual when no relax pass follows it.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve(
     threads: u32,
@@ -43,10 +44,15 @@ pub(super) fn solve(
     params: &ImpulseParams,
     bias: Biases,
     h: f64,
+    converged: f64,
     last_step: bool,
     report: &mut ImpulseReport,
 ) {
-    for k in 0..params.iterations {
+    let adaptive = params.adaptive_iterations > 0;
+    let most = params.iterations + params.adaptive_iterations;
+    let residual = last_step && params.relax_iterations == 0;
+    let mut k = 0;
+    loop {
         // Split impulses start from nothing each sub-step.
         let fresh = params.split_impulses && k == 0;
         report.passes += 1;
@@ -57,9 +63,18 @@ pub(super) fn solve(
             params.split_impulses,
             fresh,
         );
-        let last = last_step && params.relax_iterations == 0 && k + 1 == params.iterations;
-        if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
-            report.residual = change * h;
+        let measure = k + 1 >= params.iterations && (adaptive || residual);
+        let change = velocity_pass(threads, sb, buckets, args, measure);
+        k += 1;
+        if k < params.iterations {
+            continue;
+        }
+        let done = !adaptive || k >= most || change.is_none_or(|c| c <= converged);
+        if done {
+            if let (true, Some(change)) = (residual, change) {
+                report.residual = change * h;
+            }
+            return;
         }
     }
 }

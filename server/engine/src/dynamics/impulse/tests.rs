@@ -37,6 +37,7 @@ fn solve(
 fn params() -> ImpulseParams {
     ImpulseParams {
         iterations: 8,
+        adaptive_iterations: 0,
         relax_iterations: 0,
         warm_starting: true,
         baumgarte: 0.2,
