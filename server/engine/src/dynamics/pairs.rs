@@ -73,8 +73,16 @@ pub struct PairSet {
     /// The candidate pairs, sorted by `(a, b)`.
     pub pairs: Vec<Pair>,
     moved: Vec<u32>,
-    found: Vec<(u32, u32)>,
+    /// New pairs found by a search, as `a << 32 | b` (sorted, they are in pair order).
+    found: Vec<u64>,
     merged: Vec<Pair>,
+    /// The bodies whose neighbours this round searches: a pair of two of them is taken
+    /// from the smaller's search only.
+    searching: Vec<bool>,
+    /// The search each body was last seen by (a body in several cells of a search comes
+    /// once per cell; it is taken once).
+    seen: Vec<u32>,
+    search: u32,
     /// Bodies re-inserted over the set's life (a figure for tests and benchmarks).
     pub reinserted: u64,
 }
@@ -139,6 +147,11 @@ impl PairSet {
             .retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
         self.found.clear();
         let moved = std::mem::take(&mut self.moved);
+        self.searching.clear();
+        self.searching.resize(bodies.len(), false);
+        for &i in &moved {
+            self.searching[i as usize] = true;
+        }
         for &i in &moved {
             self.neighbours(bodies, i);
         }
@@ -206,6 +219,8 @@ impl PairSet {
             }
         }
         self.found.clear();
+        self.searching.clear();
+        self.searching.extend_from_slice(&play);
         for (i, &p) in play.iter().enumerate() {
             if p {
                 self.neighbours(bodies, i as u32);
@@ -258,30 +273,52 @@ impl PairSet {
             && self.resolves[p.group as usize * self.groups + q.group as usize]
     }
 
-    /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap.
+    /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap, each once: a
+    /// body met in several cells is taken at the first, and a pair of two searched
+    /// bodies from the smaller's search.
     fn neighbours(&mut self, bodies: &[Body], i: u32) {
         let fi = self.fat[i as usize];
-        let push = |set: &Self, found: &mut Vec<(u32, u32)>, j: u32| {
-            if set.eligible(bodies, i, j) && overlap(&fi, &set.fat[j as usize]) {
-                found.push((i.min(j), i.max(j)));
-            }
-        };
+        if self.seen.len() < self.fat.len() {
+            self.seen.resize(self.fat.len(), 0);
+        }
+        self.search = self.search.wrapping_add(1);
+        if self.search == 0 {
+            self.seen.fill(0);
+            self.search = 1;
+        }
+        let search = self.search;
         let mut found = std::mem::take(&mut self.found);
+        let mut seen = std::mem::take(&mut self.seen);
+        let mut push = |set: &Self, j: u32| {
+            let s = &mut seen[j as usize];
+            if *s == search {
+                return;
+            }
+            *s = search;
+            if (j < i && set.searching[j as usize])
+                || !overlap(&fi, &set.fat[j as usize])
+                || !set.eligible(bodies, i, j)
+            {
+                return;
+            }
+            let (a, b) = (i.min(j), i.max(j));
+            found.push(u64::from(a) << 32 | u64::from(b));
+        };
         match fi.place {
             None => {}
             Some(Cells::Range(x0, y0, x1, y1)) => {
-                self.grid
-                    .visit((x0, y0, x1, y1), |j| push(self, &mut found, j));
+                self.grid.visit((x0, y0, x1, y1), |j| push(self, j));
             }
             Some(Cells::Oversized) => {
                 for j in 0..self.fat.len() as u32 {
                     if self.fat[j as usize].place.is_some() {
-                        push(self, &mut found, j);
+                        push(self, j);
                     }
                 }
             }
         }
         self.found = found;
+        self.seen = seen;
     }
 
     /// Adds the pairs in `found` that are not kept yet, keeping `pairs` sorted.
@@ -292,9 +329,10 @@ impl PairSet {
         self.found.sort_unstable();
         self.found.dedup();
         self.merged.clear();
-        let mut new = self.found.iter().peekable();
+        let split = |k: u64| ((k >> 32) as u32, k as u32);
+        let mut new = self.found.iter().map(|&k| split(k)).peekable();
         for p in &self.pairs {
-            while let Some(&&(a, b)) = new.peek() {
+            while let Some(&(a, b)) = new.peek() {
                 if (a, b) < (p.a, p.b) {
                     self.merged.push(Pair::new(a, b));
                     new.next();
@@ -307,7 +345,7 @@ impl PairSet {
             }
             self.merged.push(*p);
         }
-        self.merged.extend(new.map(|&(a, b)| Pair::new(a, b)));
+        self.merged.extend(new.map(|(a, b)| Pair::new(a, b)));
         std::mem::swap(&mut self.pairs, &mut self.merged);
     }
 }
