@@ -323,6 +323,55 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
 /// A flood of snapshot queries from one session is answered at the sender's query rate
 /// (50 a second, 100 at once), the rest dropped unanswered, so its answers cannot pile up
 /// in the server's memory; another client's query is still answered.
+/// Frames and events are taken from the world's server only: publications on the world's
+/// frame and event keys from a session that does not hold the world's token, without a
+/// source or with one naming itself, are dropped and counted by the client's streams,
+/// while the server's frames still come. (The forger is a second session in the client's
+/// process: zenoh delivers its puts to the client's subscribers locally, so every forgery
+/// surely reaches the streams.)
+#[test]
+fn publications_are_taken_only_from_the_peer_holding_the_worlds_token() {
+    let server = Server::start("impulse.toml", "forged", &[]);
+    let client = server.client();
+    let frames = client.frames().unwrap();
+    let events = client.events().unwrap();
+    let publishers: Vec<_> = [&client.keys().frame, &client.keys().event]
+        .into_iter()
+        .map(|key| client.session().declare_publisher(key.clone()).wait().unwrap())
+        .collect();
+    let marker = b"forged by another peer".to_vec();
+    let (mut real, mut forged_seen) = (0u32, 0u32);
+    let began = Instant::now();
+    while began.elapsed() < Duration::from_secs(3) {
+        for publisher in &publishers {
+            publisher.put(marker.clone()).wait().unwrap();
+            let own = zenoh::sample::SourceInfo::new(publisher.id(), 1);
+            publisher.put(marker.clone()).source_info(own).wait().unwrap();
+        }
+        std::thread::sleep(Duration::from_millis(20));
+        while let Ok(Some(sample)) = frames.try_recv() {
+            if sample.payload().to_bytes().as_ref() == marker.as_slice() {
+                forged_seen += 1;
+            } else {
+                real += 1;
+            }
+        }
+        while let Ok(Some(sample)) = events.try_recv() {
+            if sample.payload().to_bytes().as_ref() == marker.as_slice() {
+                forged_seen += 1;
+            }
+        }
+    }
+    assert_eq!(forged_seen, 0, "forged publications reached the client");
+    assert!(real > 10, "{real} of the server's frames came");
+    assert!(
+        frames.ignored() > 10 && events.ignored() > 10,
+        "the forgeries were dropped and counted: {} frames, {} events",
+        frames.ignored(),
+        events.ignored()
+    );
+}
+
 #[test]
 fn a_flood_of_queries_is_answered_at_the_senders_rate() {
     let server = Server::start("emitters.toml", "queried", &[]);

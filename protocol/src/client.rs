@@ -9,9 +9,12 @@
 //! open network this guards against mistakes and naive impostors; against a peer that
 //! forges its id, the secured deployment (docs/security.md) is what holds, where only the
 //! server's credentials may declare the token and the queryables.
+//!
+//! Frames, snapshots and events are taken the same way: each publication the server makes
+//! carries its session's id as its source ([`FrameStream`] drops and counts any other).
 
-use std::sync::atomic::{AtomicU32, Ordering};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
@@ -25,10 +28,107 @@ use crate::command::{Command, Event, Reply};
 use crate::keys::{self, WorldKeys};
 use crate::net::Network;
 
-/// Samples as they arrive, in order, in a ring: a reader that falls more than the ring
-/// behind loses the oldest (a frame decoder then resyncs) instead of holding up zenoh's
-/// receive thread, and with it every reply this session waits for.
-pub type FrameStream = Subscriber<RingChannelHandler<Sample>>;
+/// The world's publications (frames, snapshots or events) as they arrive, in order, in a
+/// ring: a reader that falls more than the ring behind loses the oldest (a frame decoder
+/// then resyncs) instead of holding up zenoh's receive thread, and with it every reply
+/// this session waits for. Only samples whose source is the session holding the world's
+/// liveliness token come out; any other (no source, another peer's, or a world claimed by
+/// several) is dropped and counted ([`FrameStream::ignored`]).
+pub struct FrameStream {
+    inner: Subscriber<RingChannelHandler<Sample>>,
+    trust: Arc<Trust>,
+    ignored: AtomicU64,
+}
+
+/// Who the world's server is, shared by a client and its streams.
+struct Trust {
+    session: Session,
+    alive: String,
+    /// The zenoh ids holding the world's liveliness token, as last read.
+    servers: Mutex<Vec<String>>,
+    /// When a stream last read the holders again (at most once a [`Trust::REFRESH`]).
+    refreshed: Mutex<Option<Instant>>,
+}
+
+impl Trust {
+    /// How often an unknown source may make a stream read the token's holders again.
+    const REFRESH: Duration = Duration::from_secs(1);
+
+    /// Whether `zid` holds the world's token, and alone; an unknown `zid` rereads the
+    /// holders, at most once a [`Trust::REFRESH`].
+    fn holds_alone(&self, zid: &str) -> bool {
+        let known = {
+            let servers = self.servers.lock().unwrap_or_else(|e| e.into_inner());
+            servers.iter().any(|s| s == zid).then_some(servers.len() == 1)
+        };
+        if let Some(alone) = known {
+            return alone;
+        }
+        {
+            let mut last = self.refreshed.lock().unwrap_or_else(|e| e.into_inner());
+            if last.is_some_and(|t| t.elapsed() < Self::REFRESH) {
+                return false;
+            }
+            *last = Some(Instant::now());
+        }
+        let Ok(tokens) = alive_tokens(&self.session, &self.alive, Self::REFRESH) else {
+            return false;
+        };
+        let holders: Vec<String> = tokens.into_iter().map(|(_, z)| z).collect();
+        let alone = holders.len() == 1 && holders[0] == zid;
+        *self.servers.lock().unwrap_or_else(|e| e.into_inner()) = holders;
+        alone
+    }
+}
+
+impl FrameStream {
+    /// The next sample from the world's server within `timeout` (`None`: none came).
+    pub fn recv_timeout(&self, timeout: Duration) -> zenoh::Result<Option<Sample>> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.inner.recv_timeout(left)? {
+                Some(sample) if self.is_from_server(&sample) => return Ok(Some(sample)),
+                Some(_) => continue,
+                None => return Ok(None),
+            }
+        }
+    }
+
+    /// The next sample from the world's server already received (`None`: none is).
+    pub fn try_recv(&self) -> zenoh::Result<Option<Sample>> {
+        loop {
+            match self.inner.try_recv()? {
+                Some(sample) if self.is_from_server(&sample) => return Ok(Some(sample)),
+                Some(_) => continue,
+                None => return Ok(None),
+            }
+        }
+    }
+
+    /// Samples dropped so far because they did not come from the world's server.
+    pub fn ignored(&self) -> u64 {
+        self.ignored.load(Ordering::Relaxed)
+    }
+
+    fn is_from_server(&self, sample: &Sample) -> bool {
+        let trusted = sample
+            .source_info()
+            .is_some_and(|s| self.trust.holds_alone(&s.source_id().zid().to_string()));
+        if !trusted {
+            let n = self.ignored.fetch_add(1, Ordering::Relaxed) + 1;
+            // A note on the first, then at every power of two: a forger cannot flood the log.
+            if n.is_power_of_two() {
+                tracing::warn!(
+                    key = %sample.key_expr(),
+                    ignored = n,
+                    "ignored a publication from a peer that is not the world's server"
+                );
+            }
+        }
+        trusted
+    }
+}
 
 /// Frames a client holds unread at most before the oldest are dropped.
 pub const FRAME_RING: usize = 4096;
@@ -37,8 +137,8 @@ pub const FRAME_RING: usize = 4096;
 pub struct Client {
     session: Session,
     keys: WorldKeys,
-    /// The zenoh ids holding the world's liveliness token, as last read.
-    servers: Mutex<Vec<String>>,
+    /// The world's server, as its streams and replies are checked against.
+    trust: Arc<Trust>,
     /// Commands leave through this publisher; its id names this client as their sender.
     commands: Publisher<'static>,
     /// Numbers this client's commands (zenoh's source sequence number) and requests
@@ -59,11 +159,17 @@ impl Client {
             .declare_publisher(keys.cmd.clone())
             .wait()
             .map_err(|e| anyhow!("declare the command publisher: {e}"))?;
+        let trust = Arc::new(Trust {
+            session: session.clone(),
+            alive: keys.alive_tokens(),
+            servers: Mutex::new(Vec::new()),
+            refreshed: Mutex::new(None),
+        });
         Ok(Client {
             session,
             keys,
             commands,
-            servers: Mutex::new(Vec::new()),
+            trust,
             sequence: AtomicU32::new(0),
         })
     }
@@ -158,7 +264,7 @@ impl Client {
     /// Whether `zid` holds the world's token, and alone: read from the last list of
     /// holders, refreshed once (`refreshed`) when `zid` is not on it.
     fn is_server(&self, zid: &str, refreshed: &mut bool, timeout: Duration) -> Result<bool> {
-        let mut servers = self.servers.lock().unwrap_or_else(|e| e.into_inner());
+        let mut servers = self.trust.servers.lock().unwrap_or_else(|e| e.into_inner());
         if !servers.iter().any(|s| s == zid) && !*refreshed {
             *refreshed = true;
             *servers = self.servers(timeout)?;
@@ -264,11 +370,17 @@ impl Client {
     }
 
     fn subscribe(&self, key: &str, capacity: usize) -> Result<FrameStream> {
-        self.session
+        let inner = self
+            .session
             .declare_subscriber(key.to_string())
             .with(RingChannel::new(capacity.max(1)))
             .wait()
-            .map_err(|e| anyhow!("subscribe to {key}: {e}"))
+            .map_err(|e| anyhow!("subscribe to {key}: {e}"))?;
+        Ok(FrameStream {
+            inner,
+            trust: Arc::clone(&self.trust),
+            ignored: AtomicU64::new(0),
+        })
     }
 
     /// Statics snapshots re-published when static bodies change.

@@ -35,6 +35,7 @@ use ricochet_protocol::keys::WorldKeys;
 use ricochet_protocol::net::Network;
 use ricochet_protocol::world as wire;
 use zenoh::qos::CongestionControl;
+use zenoh::sample::SourceInfo;
 use zenoh::Wait;
 
 use answered::Answered;
@@ -199,7 +200,8 @@ fn drops_event(frame: u64, before: [u64; 3], now: [u64; 3]) -> Option<Event> {
 /// Publishes the statics snapshot if it is due ([`Hosted::snapshot_due`]).
 fn publish_statics(h: &mut Hosted, snapshots: &zenoh::pubsub::Publisher<'_>) {
     if let Some(snapshot) = h.snapshot_due(Instant::now()) {
-        if let Err(e) = snapshots.put(snapshot).wait() {
+        let source = SourceInfo::new(snapshots.id(), h.world.frame() as u32);
+        if let Err(e) = snapshots.put(snapshot).source_info(source).wait() {
             tracing::warn!("publishing the snapshot failed: {e}");
         }
     }
@@ -343,7 +345,10 @@ pub fn run(opts: HostOptions) -> Result<()> {
         h.fresh = false;
         publish_statics(h, &snapshots);
         let bytes = h.encode_frame();
-        if let Err(e) = frames.put(bytes).wait() {
+        // The source names this session, which holds the world's token: clients take
+        // frames from it only.
+        let source = SourceInfo::new(frames.id(), h.world.frame() as u32);
+        if let Err(e) = frames.put(bytes).source_info(source).wait() {
             tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
         }
         if let Some(out) = dump.as_mut() {

@@ -61,13 +61,20 @@ impl Outbox {
         std::thread::Builder::new()
             .name("ricochet-outbox".into())
             .spawn(move || {
+                // Events name this session as their source (clients take them from the
+                // holder of the world's token only), numbered in order.
+                let mut sn = 0u32;
                 for out in rx {
                     let len = out.len();
                     let sent = match out {
                         Out::Reply(query, body) => {
                             query.reply(query.key_expr().clone(), body).wait()
                         }
-                        Out::Event(body) => events.put(body).wait(),
+                        Out::Event(body) => {
+                            sn = sn.wrapping_add(1);
+                            let source = zenoh::sample::SourceInfo::new(events.id(), sn);
+                            events.put(body).source_info(source).wait()
+                        }
                     };
                     release(&taken, len);
                     if let Err(e) = sent {
