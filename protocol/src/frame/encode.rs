@@ -212,21 +212,32 @@ impl FrameEncoder {
     fn encode_bodies(&mut self, out: &mut Vec<u8>, bodies: &[BodyIn]) {
         let mut records = Records::with_capacity(bodies.len() * 4);
         let sent = std::mem::take(&mut self.bodies);
+        // A body sent before is updated in place (its id and group strings kept): only a
+        // new body, or a different one under a reused key, allocates.
         self.bodies = diff(
             sent,
-            bodies.iter().map(body_of),
+            bodies.iter(),
             |b| b.key,
             &mut records,
             |records, old, now| {
+                let size = [now.size[0] as f32, now.size[1] as f32];
                 match old {
-                    Some(old)
+                    Some(mut old)
                         if old.id == now.id
-                            && old.size == now.size
+                            && old.size == size
                             && old.circle == now.circle
                             && old.group == now.group =>
                     {
-                        let moved = old.qpos != now.qpos;
-                        let sped = old.qvel != now.qvel;
+                        let qpos = [
+                            quantize(now.pos[0], POS_QUANTUM),
+                            quantize(now.pos[1], POS_QUANTUM),
+                        ];
+                        let qvel = [
+                            quantize(now.vel[0], VEL_QUANTUM),
+                            quantize(now.vel[1], VEL_QUANTUM),
+                        ];
+                        let moved = old.qpos != qpos;
+                        let sped = old.qvel != qvel;
                         if moved || sped || old.collided != now.collided {
                             let out = records.start(now.key);
                             out.push(
@@ -235,19 +246,26 @@ impl FrameEncoder {
                                     | (now.collided as u8 * COLLIDED),
                             );
                             if moved {
-                                put_svarint(out, now.qpos[0] - old.qpos[0]);
-                                put_svarint(out, now.qpos[1] - old.qpos[1]);
+                                put_svarint(out, qpos[0] - old.qpos[0]);
+                                put_svarint(out, qpos[1] - old.qpos[1]);
                             }
                             if sped {
-                                put_svarint(out, now.qvel[0] - old.qvel[0]);
-                                put_svarint(out, now.qvel[1] - old.qvel[1]);
+                                put_svarint(out, qvel[0] - old.qvel[0]);
+                                put_svarint(out, qvel[1] - old.qvel[1]);
                             }
                         }
+                        old.qpos = qpos;
+                        old.qvel = qvel;
+                        old.collided = now.collided;
+                        old
                     }
                     // New, or a different body under a reused key: sent whole.
-                    _ => put_new_body(records.start(now.key), &now),
+                    _ => {
+                        let body = body_of(now);
+                        put_new_body(records.start(now.key), &body);
+                        body
+                    }
                 }
-                now
             },
         );
         records.finish(out);
