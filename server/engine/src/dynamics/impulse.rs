@@ -330,43 +330,46 @@ pub fn solve_frame(
             DVec2::ZERO
         }
     };
-    (report.contacts, report.deepest) =
-        prepare::prepare(bodies, pairs, params, buffers, movers, &gains);
-    let SolverBuffers {
-        bodies: sb,
-        slot,
-        slotted,
-        accel: gain,
-        buckets,
-        pushed,
-        ..
-    } = buffers;
-    if let Some(up) = params.rest_load {
-        load::rest(buckets, sb, gain, bodies, slotted, h, up);
-    }
-    let bias = Biases::of(&params, h);
-    // The change under which a pass has converged, in the units of the smallest contact.
-    let converged = CONVERGED_CHANGE
-        * buckets
-            .iter()
-            .flatten()
-            .map(|c| c.max_push / MAX_PUSH_OUT)
-            .fold(f64::INFINITY, f64::min);
-    // One block (and the boundary) has nothing to split: the frame stays on the calling
-    // thread (no hand-over to the pool for a small world that asked for threads).
-    let threads = if buckets.len() > 2 { params.threads } else { 1 };
-    let mut bouncing = buckets.iter().flatten().any(|c| c.bounce > 0.0);
-    // The sub-steps run inside the pool, so each pass splits among threads already
-    // running (one hand-over a frame, not one a pass).
-    crate::parallel::install(threads, || {
+    // One block has nothing to split: the frame stays on the calling thread (no helper
+    // started for a small world that asked for threads). Otherwise a team started once
+    // for the frame finds the contacts and runs every pass, each split among threads
+    // already running (see [`team`]).
+    let members = match blocks::block_count(movers.len()) {
+        1 => 1,
+        blocks => crate::parallel::effective(params.threads).min(blocks),
+    };
+    team::with_team(members, |team| {
+        (report.contacts, report.deepest) =
+            prepare::prepare(bodies, pairs, params, buffers, movers, &gains, team);
+        let SolverBuffers {
+            bodies: sb,
+            accel: gain,
+            buckets,
+            pushed,
+            slotted,
+            ..
+        } = &mut *buffers;
+        if let Some(up) = params.rest_load {
+            load::rest(buckets, sb, gain, bodies, slotted, h, up);
+        }
+        let bias = Biases::of(&params, h);
+        // The change under which a pass has converged, in the units of the smallest
+        // contact.
+        let converged = CONVERGED_CHANGE
+            * buckets
+                .iter()
+                .flatten()
+                .map(|c| c.max_push / MAX_PUSH_OUT)
+                .fold(f64::INFINITY, f64::min);
+        let mut bouncing = buckets.iter().flatten().any(|c| c.bounce > 0.0);
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
             passes::integrate_velocities(sb, gain, h);
             if params.warm_starting || params.rest_load.is_some() || step > 0 {
-                passes::warm_start(threads, sb, buckets);
+                passes::warm_start(team, sb, buckets);
             }
             passes::solve(
-                threads,
+                team,
                 sb,
                 buckets,
                 &params,
@@ -377,12 +380,19 @@ pub fn solve_frame(
                 &mut report,
             );
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());
-            passes::relax(threads, sb, buckets, &params, h, last_step, &mut report);
+            passes::relax(team, sb, buckets, &params, h, last_step, &mut report);
             if bouncing {
                 bouncing = passes::restitution(sb, buckets);
             }
         }
     });
+    let SolverBuffers {
+        bodies: sb,
+        slot,
+        slotted,
+        buckets,
+        ..
+    } = buffers;
     passes::store(bodies, pairs, movers, sb, buckets, flagged);
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
@@ -394,6 +404,7 @@ mod blocks;
 mod load;
 mod passes;
 mod prepare;
+mod team;
 pub use blocks::{block_count, BLOCK_BODIES};
 
 #[cfg(test)]

@@ -6,6 +6,7 @@
 use glam::DVec2;
 
 use super::blocks::{self, Bodies};
+use super::team::Team;
 use super::{Bias, Biases, Contact, ImpulseParams, ImpulseReport, Pair, SolverBody};
 use crate::dynamics::body::Body;
 use crate::dynamics::config::Integrator;
@@ -18,8 +19,8 @@ pub(super) fn integrate_velocities(sb: &mut [SolverBody], gain: &[DVec2], h: f64
 }
 
 /// Warm start: the impulses of the last sub-step (or frame) once more.
-pub(super) fn warm_start(threads: u32, sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) {
-    in_blocks(threads, sb, buckets, |bodies, c| {
+pub(super) fn warm_start(team: &Team, sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) {
+    in_blocks(team, sb, buckets, |bodies, c| {
         if c.normal_impulse != 0.0 || c.tangent_impulse != 0.0 {
             let t = DVec2::new(-c.normal.y, c.normal.x);
             apply(
@@ -38,7 +39,7 @@ pub(super) fn warm_start(threads: u32, sb: &mut [SolverBody], buckets: &mut [Vec
 /// The frame's last pass measures the residual when no relax pass follows it.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve(
-    threads: u32,
+    team: &Team,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],
     params: &ImpulseParams,
@@ -64,7 +65,7 @@ pub(super) fn solve(
             fresh,
         );
         let measure = k + 1 >= params.iterations && (adaptive || residual);
-        let change = velocity_pass(threads, sb, buckets, args, measure);
+        let change = velocity_pass(team, sb, buckets, args, measure);
         k += 1;
         if k < params.iterations {
             continue;
@@ -118,7 +119,7 @@ pub(super) fn integrate_positions(
 /// The relax passes: velocity passes without bias after the positions moved, taking back
 /// the velocity the bias added. The frame's last measures the residual.
 pub(super) fn relax(
-    threads: u32,
+    team: &Team,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],
     params: &ImpulseParams,
@@ -130,7 +131,7 @@ pub(super) fn relax(
         report.passes += 1;
         let args = (Bias::NONE, Bias::NONE, 1.0 / h, false, false);
         let last = last_step && k + 1 == params.relax_iterations;
-        if let Some(change) = velocity_pass(threads, sb, buckets, args, last) {
+        if let Some(change) = velocity_pass(team, sb, buckets, args, last) {
             report.residual = change * h;
         }
     }
@@ -266,18 +267,18 @@ fn solve_contact<const MEASURE: bool>(
 /// One velocity pass over every contact; with `measure` (the frame's last pass), the
 /// largest normal velocity change it made.
 fn velocity_pass(
-    threads: u32,
+    team: &Team,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],
     args: (Bias, Bias, f64, bool, bool),
     measure: bool,
 ) -> Option<f64> {
     if measure {
-        Some(in_blocks(threads, sb, buckets, |b, c| {
+        Some(in_blocks(team, sb, buckets, |b, c| {
             solve_contact::<true>(b, c, args)
         }))
     } else {
-        in_blocks(threads, sb, buckets, |b, c| {
+        in_blocks(team, sb, buckets, |b, c| {
             solve_contact::<false>(b, c, args)
         });
         None
@@ -291,8 +292,9 @@ fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
     sb.update(b, |s| s.vel += impulse * ib);
 }
 
-/// Runs `work` on every contact of every block (at once on up to `threads` threads when
-/// there are several blocks), then of the boundary; returns the largest of its results.
+/// Runs `work` on every contact of every block (at once on the team's threads when there
+/// are several blocks, a group of neighbouring blocks each), then of the boundary;
+/// returns the largest of its results.
 ///
 /// Two blocks a thread runs are interleaved, a contact of one then a contact of the
 /// other: they touch different bodies, so the processor overlaps the two instead of
@@ -301,14 +303,14 @@ fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
 /// measured no faster).
 #[inline(always)]
 fn in_blocks(
-    threads: u32,
+    team: &Team,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],
     work: impl Fn(Bodies, &mut Contact) -> f64 + Sync + Send,
 ) -> f64 {
     let bodies = Bodies::new(sb);
     let (blocks, boundary) = buckets.split_at_mut(buckets.len() - 1);
-    let n = crate::parallel::effective(threads).min(blocks.len());
+    let n = team.size().min(blocks.len());
     let run = |group: &mut [Vec<Contact>]| {
         let mut largest = 0.0_f64;
         for two in group.chunks_mut(2) {
@@ -331,11 +333,26 @@ fn in_blocks(
         largest
     };
     let largest = if n > 1 {
-        crate::parallel::run(threads, blocks::groups(blocks, n), run)
+        let groups: Vec<Group> = blocks::groups(blocks, n)
             .into_iter()
-            .fold(0.0, f64::max)
+            .map(|g| Group(g.as_mut_ptr(), g.len()))
+            .collect();
+        team.run(&|k| match groups.get(k) {
+            // SAFETY: the groups are disjoint runs of `blocks`, borrowed for this call,
+            // and member `k` alone takes group `k`.
+            Some(g) => run(unsafe { std::slice::from_raw_parts_mut(g.0, g.1) }),
+            None => 0.0,
+        })
     } else {
         run(blocks)
     };
     largest.max(run(boundary))
 }
+
+/// One thread's run of blocks, handed to a team member.
+struct Group(*mut Vec<Contact>, usize);
+
+// SAFETY: a group is a run of blocks no other member touches during the pass that made it
+// (`in_blocks`), and it does not outlive that pass.
+unsafe impl Send for Group {}
+unsafe impl Sync for Group {}

@@ -2,11 +2,14 @@
 //! pair touches), the blocks cut from where the movers are, and the contacts found from
 //! the candidate pairs, each into its block's bucket (on several threads, in pair order).
 
+use std::sync::Mutex;
+
 use glam::DVec2;
 
 use super::{
     blocks, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, RESTITUTION_SPEED, UNSLOTTED,
 };
+use super::team::Team;
 use super::{MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
 use crate::dynamics::body::Body;
 use crate::geometry::separation;
@@ -21,6 +24,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
     buffers: &mut SolverBuffers,
     movers: &[u32],
     gains: &G,
+    team: &Team,
 ) -> (u64, f64) {
     let SolverBuffers {
         bodies: sb,
@@ -103,7 +107,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
     // Contiguous runs of pairs, each filling its own buckets: the first run the solver's,
     // the others spares appended after it in order, so every bucket lists its contacts
     // in the order of the pairs whatever the thread count.
-    let (runs, size) = crate::parallel::chunking(params.threads, pairs.len());
+    let (runs, size) = crate::parallel::chunking(team.size() as u32, pairs.len());
     found.resize_with(runs.saturating_sub(1), Vec::new);
     for spare in found.iter_mut() {
         spare.resize_with(block_count + 1, Vec::new);
@@ -116,9 +120,26 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         .enumerate()
         .zip(outs)
         .collect();
-    let partial = crate::parallel::run(params.threads, work, |((run, pairs), out)| {
-        find.contacts(pairs, run * size, out)
-    });
+    // Run k on the team's member k: each takes its own run, then leaves its figures.
+    let partial: Vec<(u64, f64)> = if work.len() > 1 {
+        let runs: Vec<Mutex<_>> = work.into_iter().map(|w| Mutex::new(Some(w))).collect();
+        let figures: Vec<Mutex<(u64, f64)>> = runs.iter().map(|_| Mutex::new((0, 0.0))).collect();
+        team.run(&|k| {
+            let taken = runs.get(k).and_then(|r| r.lock().expect("a run").take());
+            if let Some(((run, pairs), out)) = taken {
+                *figures[k].lock().expect("figures") = find.contacts(pairs, run * size, out);
+            }
+            0.0
+        });
+        figures
+            .into_iter()
+            .map(|f| f.into_inner().expect("figures"))
+            .collect()
+    } else {
+        work.into_iter()
+            .map(|((run, pairs), out)| find.contacts(pairs, run * size, out))
+            .collect()
+    };
     let (mut touching, mut deepest) = (0, 0.0_f64);
     for (contacts, deep) in partial {
         touching += contacts;
