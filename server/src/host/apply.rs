@@ -6,7 +6,7 @@ use zenoh::query::Query;
 
 use super::answered::{Answer, Answered};
 use super::hosted::{Handled, Hosted};
-use super::inbox::{Inbox, Incoming};
+use super::inbox::Incoming;
 use super::journal::Journal;
 use super::outbox::Outbox;
 
@@ -25,7 +25,6 @@ pub(super) fn apply_incoming(
     answered: &mut Answered,
     deferred: &mut Vec<Deferred>,
     journal: &mut Option<Journal>,
-    inbox: &Inbox,
     outbox: &Outbox,
 ) {
     let Incoming {
@@ -71,7 +70,7 @@ pub(super) fn apply_incoming(
                     reply.error.as_deref().unwrap_or("")
                 );
             }
-            inbox.event(&Event {
+            outbox.publish_event(&Event {
                 frame: reply.frame,
                 ok: reply.ok,
                 command: parsed.ok(),

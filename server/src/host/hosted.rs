@@ -272,6 +272,16 @@ impl Hosted {
         self.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
         self.health.frames += 1;
     }
+
+    /// One step, as the clock, a `step` command or a journal's replay takes it: a step
+    /// taken while `step` commands are pending counts as one of theirs.
+    pub fn advance(&mut self) {
+        self.step();
+        if self.pending_steps > 0 {
+            self.pending_steps -= 1;
+            self.steps_run += 1;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use ricochet_protocol::command::{Event, Reply};
+use ricochet_protocol::command::Reply;
 use zenoh::query::Query;
 use zenoh::sample::Sample;
 
@@ -302,11 +302,6 @@ impl Inbox {
         self.lock().queries.pop_front()
     }
 
-    /// An event for subscribers (used for refusals made at the frame boundary).
-    pub fn event(&self, event: &Event) {
-        self.outbox
-            .event(serde_json::to_vec(event).expect("events serialise"));
-    }
 }
 
 /// Takes one token from `sender`'s bucket, refilled at `rate` a second up to `burst`.

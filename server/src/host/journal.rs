@@ -344,11 +344,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         let line: Line = serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
         match line {
             Line::At { at: frame } => {
-                host.step();
-                if host.pending_steps > 0 {
-                    host.pending_steps -= 1;
-                    host.steps_run += 1;
-                }
+                host.advance();
                 if host.world.frame() != frame {
                     bail!(
                         "{}: frame {frame} stepped, but the rebuilt world is at frame {}",
@@ -712,11 +708,7 @@ mod tests {
                 step_due = handled.due_at_step;
                 journal.handled(&step, &handled.reply, &sender, &Some("steps".into()), &host);
             }
-            host.step();
-            if host.pending_steps > 0 {
-                host.pending_steps -= 1;
-                host.steps_run += 1;
-            }
+            host.advance();
             journal.stepped(host.world.frame());
         }
         drop(journal);

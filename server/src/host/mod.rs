@@ -17,6 +17,7 @@
 
 pub mod answered;
 mod apply;
+mod clock;
 pub mod hosted;
 pub mod inbox;
 pub mod journal;
@@ -42,6 +43,7 @@ use answered::Answered;
 use apply::{apply_incoming, Deferred};
 use hosted::Hosted;
 use inbox::{Ask, Inbox, InboxLimits};
+use clock::{Clock, Tick};
 use journal::Journal;
 use outbox::Outbox;
 
@@ -364,7 +366,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     // The wall time between steps: the world's dt, or longer where it would step faster
     // than `max_rate`.
     let min_interval_ns = (1e9 / opts.max_rate).round() as u64;
-    let interval = |h: &Hosted| {
+    let interval = |h: &Hosted| -> Duration {
         let dt_ns = (h.world.config.dt * 1e9).round() as u64;
         if dt_ns < min_interval_ns {
             tracing::warn!(
@@ -373,12 +375,10 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 "dt is shorter than 1/max-rate: the world runs slower than real time"
             );
         }
-        dt_ns.max(min_interval_ns)
+        Duration::from_nanos(dt_ns.max(min_interval_ns))
     };
-    let mut dt_ns = interval(&host);
+    let mut clock = Clock::new(interval(&host));
     let mut last_dt = host.world.config.dt;
-    let mut anchor = Instant::now();
-    let mut due: u64 = 1; // steps since the anchor, the next one included
     let mut deferred: Vec<Deferred> = Vec::new();
     // The state query's answer, kept for the frame it was made at.
     let mut state: Option<((u64, u64), Vec<u8>)> = None;
@@ -422,7 +422,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
 
         // The frame boundary: commands and requests that arrived, up to a bound.
         let was_paused = host.paused;
-        let (boundary, budget) = (Instant::now(), boundary_budget(Duration::from_nanos(dt_ns)));
+        let (boundary, budget) = (Instant::now(), boundary_budget(clock.interval()));
         for _ in 0..MAX_COMMANDS_PER_FRAME {
             if boundary.elapsed() >= budget {
                 break;
@@ -436,7 +436,6 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 &mut answered,
                 &mut deferred,
                 &mut journal,
-                &inbox,
                 &outbox,
             );
             if host.fresh {
@@ -449,13 +448,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
         if host.pending_steps > 0 {
             let began = Instant::now();
             while host.pending_steps > 0 && began.elapsed() < STEP_SLICE {
-                host.step();
-                host.pending_steps -= 1;
-                host.steps_run += 1;
-                publish(&mut host);
-                if let Some(journal) = journal.as_mut() {
-                    journal.stepped(host.world.frame());
-                }
+                advance(&mut host, &mut publish, &mut journal);
             }
         }
         if !deferred.is_empty() {
@@ -472,7 +465,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
         if last_drops.0.elapsed() >= DROPS_EVERY {
             let now = inbox.turned.unanswered.counts();
             if let Some(event) = drops_event(host.world.frame(), last_drops.1, now) {
-                inbox.event(&event);
+                outbox.publish_event(&event);
             }
             last_drops = (Instant::now(), now);
         }
@@ -496,17 +489,15 @@ pub fn run(opts: HostOptions) -> Result<()> {
             last_report = (Instant::now(), now);
         }
 
-        let new_dt = if host.world.config.dt != last_dt {
+        let new_interval = if host.world.config.dt != last_dt {
             last_dt = host.world.config.dt;
             interval(&host)
         } else {
-            dt_ns
+            clock.interval()
         };
-        if new_dt != dt_ns || (was_paused && !host.paused) {
+        if new_interval != clock.interval() || (was_paused && !host.paused) {
             // The clock restarts from now at the new rate.
-            dt_ns = new_dt;
-            anchor = Instant::now();
-            due = 1;
+            clock.restart(new_interval);
         }
 
         if opts.max_frames.is_some_and(|m| host.world.frame() >= m) {
@@ -522,39 +513,44 @@ pub fn run(opts: HostOptions) -> Result<()> {
             continue;
         }
 
-        let deadline = anchor + Duration::from_nanos(due.saturating_mul(dt_ns));
-        let now = Instant::now();
-        if now < deadline {
-            std::thread::sleep((deadline - now).min(Duration::from_millis(20)));
-            continue;
+        match clock.tick(Instant::now(), host.paused) {
+            Tick::Wait(wait) => {
+                std::thread::sleep(wait);
+                continue;
+            }
+            Tick::Paused => continue,
+            Tick::Step { late, dropped } => {
+                if late >= 1 {
+                    host.overruns = host.overruns.saturating_add(1);
+                }
+                if dropped > 0 {
+                    tracing::warn!(
+                        late_steps = dropped,
+                        frame = host.world.frame(),
+                        "the world cannot keep real time; the clock re-anchors"
+                    );
+                    host.overruns = host
+                        .overruns
+                        .saturating_add(dropped.min(u32::MAX as u64) as u32);
+                }
+            }
         }
-        if host.paused {
-            anchor = Instant::now();
-            due = 1;
-            continue;
-        }
-        let late_steps = ((now - deadline).as_nanos() / dt_ns.max(1) as u128) as u64;
-        if late_steps >= 1 {
-            host.overruns = host.overruns.saturating_add(1);
-        }
-        if late_steps > MAX_CATCH_UP {
-            tracing::warn!(
-                late_steps,
-                frame = host.world.frame(),
-                "the world cannot keep real time; the clock re-anchors"
-            );
-            host.overruns = host
-                .overruns
-                .saturating_add(late_steps.min(u32::MAX as u64) as u32);
-            anchor = now;
-            due = 0;
-        }
-        host.step();
-        publish(&mut host);
-        if let Some(journal) = journal.as_mut() {
-            journal.stepped(host.world.frame());
-        }
-        due += 1;
+        advance(&mut host, &mut publish, &mut journal);
+        clock.stepped();
+    }
+}
+
+/// One step of the world, as the clock or a `step` command takes it: stepped (counted
+/// against pending `step`s), published, and journalled.
+fn advance(
+    host: &mut Hosted,
+    publish: &mut impl FnMut(&mut Hosted),
+    journal: &mut Option<Journal>,
+) {
+    host.advance();
+    publish(host);
+    if let Some(journal) = journal.as_mut() {
+        journal.stepped(host.world.frame());
     }
 }
 

@@ -120,9 +120,14 @@ impl Outbox {
         self.send(Out::Reply(query, body));
     }
 
-    /// Queues an event; never blocks.
+    /// Queues an event's bytes; never blocks.
     pub fn event(&self, body: Vec<u8>) {
         self.send(Out::Event(body));
+    }
+
+    /// Queues an event for subscribers; never blocks.
+    pub fn publish_event(&self, event: &ricochet_protocol::command::Event) {
+        self.event(serde_json::to_vec(event).expect("events serialise"));
     }
 
     fn send(&self, out: Out) {
