@@ -297,6 +297,11 @@ def watch(session, world, frames, seconds, timeout):
         payload = fetch(session, world, f"ricochet/{world}/{key}", timeout)
         if payload is not None:
             decoder.apply(payload)
+    # Frames are taken from the world's server only, as the Rust client does: the server
+    # puts each with zenoh's source info naming its session; a frame from any other peer
+    # (or without a source) is skipped, counted, and the holders read again at most once
+    # a second.
+    known, refreshed, ignored = servers(session, world, timeout), time.monotonic(), 0
     seen, began = 0, time.monotonic()
     while (frames is None or seen < frames) and (seconds is None or time.monotonic() - began < seconds):
         sample = sub.try_recv()
@@ -304,6 +309,16 @@ def watch(session, world, frames, seconds, timeout):
             time.sleep(0.002)
             if time.monotonic() - began > timeout and seen == 0:
                 raise TimeoutError(f"no frames from world {world!r} within {timeout} s")
+            continue
+        source = sample.source_info
+        zid = str(source.source_id.zid) if source is not None else None
+        if zid is not None and zid not in known and time.monotonic() - refreshed >= 1.0:
+            known, refreshed = servers(session, world, timeout), time.monotonic()
+        if zid is None or zid not in known or len(known) != 1:
+            ignored += 1
+            if ignored & (ignored - 1) == 0:
+                print(f"ignored {ignored} frame(s) from peers that are not the world's server",
+                      file=sys.stderr)
             continue
         try:
             decoder.apply(sample.payload.to_bytes())
