@@ -1,7 +1,7 @@
 //! The frame boundary's work on one command or request: a retried id gets its first
 //! answer; anything else is handled by the world, journaled, and made an event.
 
-use ricochet_protocol::command::{Command, Event, Reply};
+use ricochet_protocol::command::{Command, Event, Reply, MAX_ERROR_BYTES};
 use zenoh::query::Query;
 
 use super::answered::{Answer, Answered};
@@ -73,7 +73,7 @@ pub(super) fn apply_incoming(
             outbox.publish_event(&Event {
                 frame: reply.frame,
                 ok: reply.ok,
-                command: parsed.ok(),
+                command: echoed(parsed.ok(), reply.ok),
                 ids: reply.ids.clone(),
                 error: reply.error.clone(),
             });
@@ -94,5 +94,30 @@ pub(super) fn apply_incoming(
         } else {
             outbox.reply(query, answer.reply.into_vec());
         }
+    }
+}
+
+/// The command an event shows: a refused one only when its JSON is at most
+/// [`MAX_ERROR_BYTES`] (a refused `load` of a 60 KiB scene text is not sent to every
+/// subscriber; the refusal's error names it short).
+fn echoed(command: Option<Command>, ok: bool) -> Option<Command> {
+    command.filter(|c| ok || c.to_json().len() <= MAX_ERROR_BYTES)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ricochet_protocol::command::ServerCommand;
+
+    #[test]
+    fn a_refused_command_is_echoed_only_when_short() {
+        let short = Command::Server(ServerCommand::Step { n: 1 });
+        let long = Command::parse(
+            format!(r#"{{"do":"load","text":"{}"}}"#, "x".repeat(60_000)).as_bytes(),
+        )
+        .expect("a load of inline text parses");
+        assert!(echoed(Some(short.clone()), false).is_some());
+        assert!(echoed(Some(long.clone()), false).is_none());
+        assert!(echoed(Some(long), true).is_some(), "what was applied is shown");
     }
 }
