@@ -256,6 +256,8 @@ pub struct SolverBuffers {
     accel: Vec<DVec2>,
     /// The contacts by block, then the boundary's (see [`blocks`]).
     buckets: Vec<Vec<Contact>>,
+    /// The helper threads of the passes, kept from frame to frame (see [`team`]).
+    crew: team::Crew,
     /// Buckets of the runs of pairs after the first when contacts are found on several
     /// threads.
     found: Vec<Vec<Vec<Contact>>>,
@@ -331,14 +333,16 @@ pub fn solve_frame(
         }
     };
     // One block has nothing to split: the frame stays on the calling thread (no helper
-    // started for a small world that asked for threads). Otherwise a team started once
-    // for the frame finds the contacts and runs every pass, each split among threads
-    // already running (see [`team`]).
+    // for a small world that asked for threads). Otherwise the world's crew finds the
+    // contacts and runs every pass, each split among threads already running (see
+    // [`team`]).
     let members = match blocks::block_count(movers.len()) {
         1 => 1,
         blocks => crate::parallel::effective(params.threads).min(blocks),
     };
-    team::with_team(members, |team| {
+    let team = buffers.crew.team(members);
+    {
+        let team = &*team;
         (report.contacts, report.deepest) =
             prepare::prepare(bodies, pairs, params, buffers, movers, &gains, team);
         let SolverBuffers {
@@ -385,7 +389,7 @@ pub fn solve_frame(
                 bouncing = passes::restitution(sb, buckets);
             }
         }
-    });
+    }
     let SolverBuffers {
         bodies: sb,
         slot,

@@ -39,6 +39,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         places,
         cut_scratch,
         pushed: _,
+        crew: _,
     } = buffers;
     if slot.len() < bodies.len() {
         slot.resize(bodies.len(), UNSLOTTED);
