@@ -336,8 +336,12 @@ pub fn solve_frame(
     // for a small world that asked for threads). Otherwise the world's crew finds the
     // contacts and runs every pass, each split among threads already running (see
     // [`team`]).
+    // Fewer candidate pairs than a split's worth (`parallel::MIN_SPLIT`) stay on one
+    // thread too: their passes are shorter than what the hand-over costs (the suite's
+    // rain, about 900 contacts, ran at 0.8 of one thread's speed on two).
     let members = match blocks::block_count(movers.len()) {
         1 => 1,
+        _ if pairs.len() < crate::parallel::MIN_SPLIT => 1,
         blocks => crate::parallel::effective(params.threads).min(blocks),
     };
     let team = buffers.crew.team(members);
