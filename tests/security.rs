@@ -337,7 +337,13 @@ fn publications_are_taken_only_from_the_peer_holding_the_worlds_token() {
     let events = client.events().unwrap();
     let publishers: Vec<_> = [&client.keys().frame, &client.keys().event]
         .into_iter()
-        .map(|key| client.session().declare_publisher(key.clone()).wait().unwrap())
+        .map(|key| {
+            client
+                .session()
+                .declare_publisher(key.clone())
+                .wait()
+                .unwrap()
+        })
         .collect();
     let marker = b"forged by another peer".to_vec();
     let (mut real, mut forged_seen) = (0u32, 0u32);
@@ -346,7 +352,11 @@ fn publications_are_taken_only_from_the_peer_holding_the_worlds_token() {
         for publisher in &publishers {
             publisher.put(marker.clone()).wait().unwrap();
             let own = zenoh::sample::SourceInfo::new(publisher.id(), 1);
-            publisher.put(marker.clone()).source_info(own).wait().unwrap();
+            publisher
+                .put(marker.clone())
+                .source_info(own)
+                .wait()
+                .unwrap();
         }
         std::thread::sleep(Duration::from_millis(20));
         while let Ok(Some(sample)) = frames.try_recv() {

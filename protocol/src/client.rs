@@ -59,7 +59,10 @@ impl Trust {
     fn holds_alone(&self, zid: &str) -> bool {
         let known = {
             let servers = self.servers.lock().unwrap_or_else(|e| e.into_inner());
-            servers.iter().any(|s| s == zid).then_some(servers.len() == 1)
+            servers
+                .iter()
+                .any(|s| s == zid)
+                .then_some(servers.len() == 1)
         };
         if let Some(alone) = known {
             return alone;

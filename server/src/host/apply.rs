@@ -118,6 +118,9 @@ mod tests {
         .expect("a load of inline text parses");
         assert!(echoed(Some(short.clone()), false).is_some());
         assert!(echoed(Some(long.clone()), false).is_none());
-        assert!(echoed(Some(long), true).is_some(), "what was applied is shown");
+        assert!(
+            echoed(Some(long), true).is_some(),
+            "what was applied is shown"
+        );
     }
 }

@@ -57,7 +57,10 @@ impl Clock {
 
     /// What is due at `now`.
     pub fn tick(&mut self, now: Instant, paused: bool) -> Tick {
-        let deadline = self.anchor + self.interval.saturating_mul(self.due.min(u32::MAX as u64) as u32);
+        let deadline = self.anchor
+            + self
+                .interval
+                .saturating_mul(self.due.min(u32::MAX as u64) as u32);
         if now < deadline {
             return Tick::Wait((deadline - now).min(Self::MAX_SLEEP));
         }
@@ -93,11 +96,23 @@ mod tests {
         let mut c = Clock::new(10 * MS);
         let t0 = c.anchor;
         assert_eq!(c.tick(t0 + 4 * MS, false), Tick::Wait(6 * MS));
-        assert_eq!(c.tick(t0 + 10 * MS, false), Tick::Step { late: 0, dropped: 0 });
+        assert_eq!(
+            c.tick(t0 + 10 * MS, false),
+            Tick::Step {
+                late: 0,
+                dropped: 0
+            }
+        );
         c.stepped();
         // The next is due at 20 ms whatever the step cost.
         assert_eq!(c.tick(t0 + 19 * MS, false), Tick::Wait(MS));
-        assert_eq!(c.tick(t0 + 31 * MS, false), Tick::Step { late: 1, dropped: 0 });
+        assert_eq!(
+            c.tick(t0 + 31 * MS, false),
+            Tick::Step {
+                late: 1,
+                dropped: 0
+            }
+        );
     }
 
     #[test]

@@ -301,7 +301,6 @@ impl Inbox {
     pub fn next_query(&self) -> Option<(Ask, Query)> {
         self.lock().queries.pop_front()
     }
-
 }
 
 /// Takes one token from `sender`'s bucket, refilled at `rate` a second up to `burst`.

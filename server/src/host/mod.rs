@@ -41,9 +41,9 @@ use zenoh::Wait;
 
 use answered::Answered;
 use apply::{apply_incoming, Deferred};
+use clock::{Clock, Tick};
 use hosted::Hosted;
 use inbox::{Ask, Inbox, InboxLimits};
-use clock::{Clock, Tick};
 use journal::Journal;
 use outbox::Outbox;
 

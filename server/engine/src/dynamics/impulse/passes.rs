@@ -278,9 +278,7 @@ fn velocity_pass(
             solve_contact::<true>(b, c, args)
         }))
     } else {
-        in_blocks(team, sb, buckets, |b, c| {
-            solve_contact::<false>(b, c, args)
-        });
+        in_blocks(team, sb, buckets, |b, c| solve_contact::<false>(b, c, args));
         None
     }
 }

@@ -6,10 +6,10 @@ use std::sync::Mutex;
 
 use glam::DVec2;
 
+use super::team::Team;
 use super::{
     blocks, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, RESTITUTION_SPEED, UNSLOTTED,
 };
-use super::team::Team;
 use super::{MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
 use crate::dynamics::body::Body;
 use crate::geometry::separation;

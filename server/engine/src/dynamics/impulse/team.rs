@@ -219,7 +219,9 @@ impl Crew {
                     .expect("a thread for the solver's passes")
             })
             .collect();
-        let _ = team.threads.set(helpers.iter().map(|h| h.thread().clone()).collect());
+        let _ = team
+            .threads
+            .set(helpers.iter().map(|h| h.thread().clone()).collect());
         self.team = Some((Arc::clone(&team), helpers));
         team
     }
