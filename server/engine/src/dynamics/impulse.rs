@@ -347,8 +347,8 @@ pub fn solve_frame(
     let team = buffers.crew.team(members);
     {
         let team = &*team;
-        (report.contacts, report.deepest) =
-            prepare::prepare(bodies, pairs, params, buffers, movers, &gains, team);
+        let found = prepare::prepare(bodies, pairs, params, buffers, movers, &gains, team);
+        (report.contacts, report.deepest) = (found.touching, found.deepest);
         let SolverBuffers {
             bodies: sb,
             accel: gain,
@@ -363,13 +363,8 @@ pub fn solve_frame(
         let bias = Biases::of(&params, h);
         // The change under which a pass has converged, in the units of the smallest
         // contact.
-        let converged = CONVERGED_CHANGE
-            * buckets
-                .iter()
-                .flatten()
-                .map(|c| c.max_push / MAX_PUSH_OUT)
-                .fold(f64::INFINITY, f64::min);
-        let mut bouncing = buckets.iter().flatten().any(|c| c.bounce > 0.0);
+        let converged = CONVERGED_CHANGE * found.smallest;
+        let mut bouncing = found.bouncing;
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
             passes::integrate_velocities(sb, gain, h);

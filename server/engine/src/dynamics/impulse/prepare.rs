@@ -25,7 +25,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
     movers: &[u32],
     gains: &G,
     team: &Team,
-) -> (u64, f64) {
+) -> Found {
     let SolverBuffers {
         bodies: sb,
         slot,
@@ -122,9 +122,9 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         .zip(outs)
         .collect();
     // Run k on the team's member k: each takes its own run, then leaves its figures.
-    let partial: Vec<(u64, f64)> = if work.len() > 1 {
+    let partial: Vec<Found> = if work.len() > 1 {
         let runs: Vec<Mutex<_>> = work.into_iter().map(|w| Mutex::new(Some(w))).collect();
-        let figures: Vec<Mutex<(u64, f64)>> = runs.iter().map(|_| Mutex::new((0, 0.0))).collect();
+        let figures: Vec<Mutex<Found>> = runs.iter().map(|_| Mutex::default()).collect();
         team.run(&|k| {
             let taken = runs.get(k).and_then(|r| r.lock().expect("a run").take());
             if let Some(((run, pairs), out)) = taken {
@@ -141,17 +141,48 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
             .map(|((run, pairs), out)| find.contacts(pairs, run * size, out))
             .collect()
     };
-    let (mut touching, mut deepest) = (0, 0.0_f64);
-    for (contacts, deep) in partial {
-        touching += contacts;
-        deepest = deepest.max(deep);
-    }
     for spare in found.iter_mut() {
         for (bucket, more) in buckets.iter_mut().zip(spare.iter()) {
             bucket.extend_from_slice(more);
         }
     }
-    (touching, deepest)
+    partial.into_iter().fold(Found::default(), Found::and)
+}
+
+/// What finding a frame's contacts found, besides the contacts.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Found {
+    /// Contacts touching (or overlapping).
+    pub touching: u64,
+    /// The deepest penetration among them.
+    pub deepest: f64,
+    /// The smallest body size a contact touches (infinite for none).
+    pub smallest: f64,
+    /// Whether a contact is to bounce.
+    pub bouncing: bool,
+}
+
+impl Default for Found {
+    fn default() -> Self {
+        Found {
+            touching: 0,
+            deepest: 0.0,
+            smallest: f64::INFINITY,
+            bouncing: false,
+        }
+    }
+}
+
+impl Found {
+    /// Two runs' findings as one.
+    fn and(self, other: Found) -> Found {
+        Found {
+            touching: self.touching + other.touching,
+            deepest: self.deepest.max(other.deepest),
+            smallest: self.smallest.min(other.smallest),
+            bouncing: self.bouncing || other.bouncing,
+        }
+    }
 }
 
 /// What finding a frame's contacts reads: the bodies, their places among the solver's
@@ -170,11 +201,11 @@ struct Finder<'a, G> {
 impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
     /// The contacts of `pairs` (the run starting at pair `first`), each pushed to its
     /// bucket in `out`; each pair's impulses are taken (the solver leaves this frame's).
-    /// Returns the touching contacts and the deepest penetration among them.
-    fn contacts(&self, pairs: &mut [Pair], first: usize, out: &mut [Vec<Contact>]) -> (u64, f64) {
+    /// Returns what it found besides the contacts.
+    fn contacts(&self, pairs: &mut [Pair], first: usize, out: &mut [Vec<Contact>]) -> Found {
         let (bodies, params, gains) = (self.bodies, self.params, self.gains);
         let frame_dt = params.dt;
-        let (mut touching, mut deepest) = (0, 0.0_f64);
+        let mut found = Found::default();
         for (k, pair) in pairs.iter_mut().enumerate() {
             let (i, j) = (pair.a, pair.b);
             let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
@@ -197,8 +228,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 continue;
             }
             if gap <= 0.0 {
-                touching += 1;
-                deepest = deepest.max(-gap);
+                found.touching += 1;
+                found.deepest = found.deepest.max(-gap);
             }
             // The approach speed at impact: a pair found apart closes its gap under its
             // relative acceleration first, so it meets faster (or slower) than it was found
@@ -238,6 +269,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 },
                 |s| self.block_of[s as usize] as usize,
             );
+            found.smallest = found.smallest.min(size);
+            found.bouncing |= bounce > 0.0;
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
@@ -259,6 +292,6 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
             });
         }
-        (touching, deepest)
+        found
     }
 }
