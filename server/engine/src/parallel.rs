@@ -68,13 +68,3 @@ pub fn run<T: Send, R: Send>(
     }
     pool(effective(threads)).install(|| chunks.into_par_iter().map(&work).collect())
 }
-
-/// Runs `work` on the shared pool of `threads` (inline on one thread), so that the
-/// [`run`]s it makes split among threads already running.
-pub fn install<R: Send>(threads: u32, work: impl FnOnce() -> R + Send) -> R {
-    let n = effective(threads);
-    if n == 1 {
-        return work();
-    }
-    pool(n).install(work)
-}
