@@ -4,18 +4,18 @@
 //! The SDK's layout builder has no visual bounds for 2D views, so the blueprint is written
 //! as the viewer stores it: one archetype per container and view, under fixed ids.
 
-use rerun::external::re_log_types::{BlueprintActivationCommand, LogMsg};
-use rerun::external::re_sdk_types::blueprint::archetypes::{
+use re_sdk::external::re_log_types::{BlueprintActivationCommand, LogMsg};
+use re_sdk::{RecordingStream, RecordingStreamBuilder, RecordingStreamResult};
+use re_sdk_types::blueprint::archetypes::{
     Background, ContainerBlueprint, PanelBlueprint, TimePanelBlueprint, ViewBlueprint,
     ViewContents, ViewportBlueprint, VisualBounds2D,
 };
-use rerun::external::re_sdk_types::blueprint::components::{
+use re_sdk_types::blueprint::components::{
     AutoLayout, AutoViews, BackgroundKind, ColumnShare, ContainerKind, IncludedContent, PanelState,
     QueryExpression, RootContainer, RowShare, ViewClass,
 };
-use rerun::external::re_sdk_types::components::Name;
-use rerun::external::re_sdk_types::datatypes::{Bool, Float32, Range1D, Range2D};
-use rerun::{RecordingStream, RecordingStreamBuilder, RecordingStreamResult};
+use re_sdk_types::components::Name;
+use re_sdk_types::datatypes::{Bool, Float32, Range1D, Range2D};
 
 use crate::draw;
 
@@ -88,8 +88,9 @@ fn log_node(
                 let [r, g, b, a] = draw::BACKGROUND;
                 rec.log(
                     format!("{bp}/Background"),
-                    &Background::new(BackgroundKind::SolidColor)
-                        .with_color(rerun::Color::from_unmultiplied_rgba(r, g, b, a)),
+                    &Background::new(BackgroundKind::SolidColor).with_color(
+                        re_sdk_types::components::Color::from_unmultiplied_rgba(r, g, b, a),
+                    ),
                 )?;
                 rec.log(
                     format!("{bp}/VisualBounds2D"),
@@ -123,9 +124,9 @@ fn log_node(
                 };
             }
             if let Some(c) = columns {
-                arch = arch.with_grid_columns(
-                    rerun::external::re_sdk_types::blueprint::components::GridColumns((*c).into()),
-                );
+                arch = arch.with_grid_columns(re_sdk_types::blueprint::components::GridColumns(
+                    (*c).into(),
+                ));
             }
             let bp = format!("container/{uuid}");
             rec.log(bp.clone(), &arch)?;

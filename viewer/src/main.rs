@@ -99,8 +99,8 @@ enum Served {
     Nothing,
 }
 
-fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(rerun::RecordingStream, Served)> {
-    let builder = rerun::RecordingStreamBuilder::new(app_id);
+fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(re_sdk::RecordingStream, Served)> {
+    let builder = re_sdk::RecordingStreamBuilder::new(app_id);
     if let Some(path) = &opts.save {
         // A file takes whole chunks at its own pace.
         let rec = builder
@@ -113,14 +113,14 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(rerun::RecordingStrea
     if opts.batch == 0 || opts.batch > 10_000 {
         bail!("--batch must be 1 to 10000 ms, not {}", opts.batch);
     }
-    let builder = builder.batcher_config(rerun::log::ChunkBatcherConfig {
+    let builder = builder.batcher_config(re_sdk::log::ChunkBatcherConfig {
         flush_tick: Duration::from_millis(opts.batch),
         // A sink that cannot keep up holds the viewer's loop back soon (4 MiB queued here,
         // not the default 100 MiB): the loop then skips frames and draws the newest state
         // rather than queueing minutes of the world for a page that is behind. (The gRPC
         // server queues up to 1024 chunks more for each page; that bound is Rerun's.)
         max_bytes_in_flight: 4 * 1024 * 1024,
-        ..rerun::log::ChunkBatcherConfig::DEFAULT
+        ..re_sdk::log::ChunkBatcherConfig::DEFAULT
     });
     if opts.spawn {
         let rec = builder.spawn().map_err(|e| {
@@ -134,17 +134,17 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(rerun::RecordingStrea
             .with_context(|| format!("cannot connect to the Rerun viewer at {url}"))?;
         return Ok((rec, Served::Nothing));
     }
-    let memory_limit = rerun::MemoryLimit::parse(&opts.memory_limit)
+    let memory_limit = re_sdk::MemoryLimit::parse(&opts.memory_limit)
         .map_err(|e| anyhow!("--memory-limit {}: {e}", opts.memory_limit))?;
     let rec = builder
         .serve_grpc_opts(
             &opts.bind,
             opts.grpc_port,
-            rerun::ServerOptions {
+            re_sdk::ServerOptions {
                 memory_limit,
                 // The present before the past: a page that opens late is sent what
                 // arrives now ahead of the history.
-                playback_behavior: rerun::PlaybackBehavior::NewestFirst,
+                playback_behavior: re_sdk::PlaybackBehavior::NewestFirst,
                 ..Default::default()
             },
         )
@@ -155,7 +155,7 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(rerun::RecordingStrea
             )
         })?;
     let grpc = format!("rerun+http://{}:{}/proxy", opts.bind, opts.grpc_port);
-    let server = rerun::serve_web_viewer(rerun::web_viewer::WebViewerConfig {
+    let server = re_sdk::serve_web_viewer(re_sdk::web_viewer::WebViewerConfig {
         bind_ip: opts.bind.clone(),
         web_port: opts.web_port.into(),
         connect_to: vec![grpc.clone()],

@@ -4,10 +4,9 @@
 use std::collections::BTreeSet;
 
 use anyhow::Result;
-use rerun::{
-    Clear, Color, LineStrips2D, Points2D, Radius, RecordingStream, Scalars, SeriesLines, TextLog,
-    TextLogLevel,
-};
+use re_sdk::RecordingStream;
+use re_sdk_types::archetypes::{Clear, LineStrips2D, Points2D, Scalars, SeriesLines, TextLog};
+use re_sdk_types::components::{Color, Radius, TextLogLevel};
 use ricochet_protocol::command::{Event, WorldInfo};
 use ricochet_protocol::frame::{Body, FrameDecoder, FrameStats};
 

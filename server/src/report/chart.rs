@@ -1,9 +1,37 @@
 //! The trade-off charts' common part: time against error on log scales, one point per
 //! setting labelled with its number, the front in red.
 
-use anyhow::Result;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use anyhow::{Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+
+/// Draws a picture of `width` x `height` with `draw` and writes it to `path` as a PNG.
+/// plotters draws into memory and the `png` crate encodes it: plotters' own encoder would
+/// bring a second `image` crate into the main job's build for nothing else.
+pub fn write_png(
+    path: &Path,
+    (width, height): (u32, u32),
+    draw: impl FnOnce(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+) -> Result<()> {
+    let mut rgb = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (width, height)).into_drawing_area();
+        draw(&root)?;
+        root.present()?;
+    }
+    let file = File::create(path).with_context(|| format!("cannot write {}", path.display()))?;
+    let mut encoder = png::Encoder::new(BufWriter::new(file), width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder
+        .write_header()
+        .and_then(|mut writer| writer.write_image_data(&rgb))
+        .with_context(|| format!("cannot write {}", path.display()))
+}
 
 /// Where the charts' font is looked for (Debian's fonts-dejavu-core).
 pub const FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";

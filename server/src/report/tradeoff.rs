@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use super::chart::{panel, register_font, Point};
+use super::chart::{panel, register_font, write_png, Point};
 use super::scene_tradeoff::{judged_error, measure, ClosedForm, Options, Report, Subject};
 use super::table::Table;
 
@@ -282,45 +282,45 @@ pub fn chart(cells: &[Cell], path: &std::path::Path) -> anyhow::Result<()> {
             names.push(c.setting.clone());
         }
     }
-    let root = BitMapBackend::new(path, (1500, 950)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let panels = root.split_evenly((2, 3));
-    for (area, &(scene, ..)) in panels.iter().zip(SCENES) {
-        let mine: Vec<&Cell> = cells
-            .iter()
-            .filter(|c| c.scene == scene && !c.nan)
-            .collect();
-        let Some(error_name) = mine.first().map(|c| c.error_name) else {
-            continue;
-        };
-        let points: Vec<Point> = mine
-            .iter()
-            .map(|c| Point {
-                ms: c.ms_per_step,
-                error: c.error,
-                front: on_front(c, cells),
-                label: names.iter().position(|n| *n == c.setting).unwrap_or(0) + 1,
-            })
-            .collect();
-        panel(area, scene, error_name, &points)?;
-    }
-    if let Some(legend) = panels.get(5) {
-        legend.draw(&Text::new(
-            "Settings (red: on the front)",
-            (10, 20),
-            ("sans-serif", 18),
-        ))?;
-        for (k, name) in names.iter().enumerate() {
-            legend.draw(&Text::new(
-                format!("{}  {name}", k + 1),
-                // Two columns of 13.
-                (10 + 235 * (k / 13) as i32, 48 + 19 * (k % 13) as i32),
-                ("sans-serif", 13),
-            ))?;
+    write_png(path, (1500, 950), |root| {
+        root.fill(&WHITE)?;
+        let panels = root.split_evenly((2, 3));
+        for (area, &(scene, ..)) in panels.iter().zip(SCENES) {
+            let mine: Vec<&Cell> = cells
+                .iter()
+                .filter(|c| c.scene == scene && !c.nan)
+                .collect();
+            let Some(error_name) = mine.first().map(|c| c.error_name) else {
+                continue;
+            };
+            let points: Vec<Point> = mine
+                .iter()
+                .map(|c| Point {
+                    ms: c.ms_per_step,
+                    error: c.error,
+                    front: on_front(c, cells),
+                    label: names.iter().position(|n| *n == c.setting).unwrap_or(0) + 1,
+                })
+                .collect();
+            panel(area, scene, error_name, &points)?;
         }
-    }
-    root.present()?;
-    Ok(())
+        if let Some(legend) = panels.get(5) {
+            legend.draw(&Text::new(
+                "Settings (red: on the front)",
+                (10, 20),
+                ("sans-serif", 18),
+            ))?;
+            for (k, name) in names.iter().enumerate() {
+                legend.draw(&Text::new(
+                    format!("{}  {name}", k + 1),
+                    // Two columns of 13.
+                    (10 + 235 * (k / 13) as i32, 48 + 19 * (k % 13) as i32),
+                    ("sans-serif", 13),
+                ))?;
+            }
+        }
+        Ok(())
+    })
 }
 
 #[cfg(test)]

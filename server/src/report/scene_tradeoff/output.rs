@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Result};
 
 use super::{judged_error, Report, Row};
-use crate::report::chart::{panel, register_font, Point};
+use crate::report::chart::{panel, register_font, write_png, Point};
 use crate::report::table::Table;
 
 impl Report {
@@ -196,45 +196,45 @@ impl Report {
         if rows.is_empty() {
             bail!("every candidate gave NaN: nothing to chart");
         }
-        let root = BitMapBackend::new(path, (1100, 700)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let (plot, legend) = root.split_horizontally(700);
-        let title = self
-            .scene
-            .file_name()
-            .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
-        let points: Vec<Point> = self
-            .rows
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| !r.nan)
-            .map(|(k, r)| Point {
-                ms: r.ms_mean,
-                error: judged_error(r),
-                front: r.on_front,
-                label: k + 1,
-            })
-            .collect();
-        panel(
-            &plot,
-            &title,
-            "worst position error over the run (units)",
-            &points,
-        )?;
-        legend.draw(&Text::new(
-            "Settings (red: on the front)",
-            (10, 20),
-            ("sans-serif", 17),
-        ))?;
-        for (k, r) in self.rows.iter().enumerate() {
+        write_png(path, (1100, 700), |root| {
+            root.fill(&WHITE)?;
+            let (plot, legend) = root.split_horizontally(700);
+            let title = self
+                .scene
+                .file_name()
+                .map_or("scene".into(), |n| n.to_string_lossy().into_owned());
+            let points: Vec<Point> = self
+                .rows
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| !r.nan)
+                .map(|(k, r)| Point {
+                    ms: r.ms_mean,
+                    error: judged_error(r),
+                    front: r.on_front,
+                    label: k + 1,
+                })
+                .collect();
+            panel(
+                &plot,
+                &title,
+                "worst position error over the run (units)",
+                &points,
+            )?;
             legend.draw(&Text::new(
-                format!("{}  {}{}", k + 1, r.name, if r.nan { " (NaN)" } else { "" }),
-                (10, 48 + 22 * k as i32),
-                ("sans-serif", 14),
+                "Settings (red: on the front)",
+                (10, 20),
+                ("sans-serif", 17),
             ))?;
-        }
-        root.present()?;
-        Ok(())
+            for (k, r) in self.rows.iter().enumerate() {
+                legend.draw(&Text::new(
+                    format!("{}  {}{}", k + 1, r.name, if r.nan { " (NaN)" } else { "" }),
+                    (10, 48 + 22 * k as i32),
+                    ("sans-serif", 14),
+                ))?;
+            }
+            Ok(())
+        })
     }
 }
 

@@ -130,6 +130,7 @@ fn add(a: &Health, b: &Health) -> Health {
         queue_full: a.queue_full + b.queue_full,
         unsent: a.unsent + b.unsent,
         queries: a.queries + b.queries,
+        over_budget: a.over_budget + b.over_budget,
     }
 }
 
