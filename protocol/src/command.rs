@@ -290,6 +290,10 @@ pub struct Health {
     pub unsent: u64,
     /// Queries (state, snapshot, info) answered.
     pub queries: u64,
+    /// Commands and requests refused because their sender's share of the server's time,
+    /// or the share of all senders, did not hold their price: requests are answered so.
+    #[serde(default)]
+    pub over_budget: u64,
 }
 
 /// One line of an input log (`ricochet record`, `ricochet-server simulate --inputs`): an

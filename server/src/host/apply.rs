@@ -4,7 +4,10 @@
 use ricochet_protocol::command::{Command, Event, Reply, MAX_ERROR_BYTES};
 use zenoh::query::Query;
 
+use std::time::Instant;
+
 use super::answered::{Answer, Answered};
+use super::budget::Budgets;
 use super::hosted::{Handled, Hosted};
 use super::inbox::Incoming;
 use super::journal::Journal;
@@ -17,16 +20,27 @@ pub(super) struct Deferred {
     pub reply: Box<[u8]>,
 }
 
+/// What the frame boundary keeps from one command to the next.
+pub(super) struct Boundary<'a> {
+    pub answered: &'a mut Answered,
+    pub budgets: &'a mut Budgets,
+    pub deferred: &'a mut Vec<Deferred>,
+    pub journal: &'a mut Option<Journal>,
+    pub outbox: &'a Outbox,
+}
+
 /// Applies one command or request at the frame boundary: a retried id gets its first
-/// answer, anything else is handled by the world; every handled command becomes an event.
-pub(super) fn apply_incoming(
-    host: &mut Hosted,
-    incoming: Incoming,
-    answered: &mut Answered,
-    deferred: &mut Vec<Deferred>,
-    journal: &mut Option<Journal>,
-    outbox: &Outbox,
-) {
+/// answer; a command its sender's budget (or the budget in all) cannot pay for is refused
+/// before it runs; anything else is handled by the world, charged what it took, and made
+/// an event.
+pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary<'_>) {
+    let Boundary {
+        answered,
+        budgets,
+        deferred,
+        journal,
+        outbox,
+    } = at;
     let Incoming {
         payload,
         sender,
@@ -40,6 +54,19 @@ pub(super) fn apply_incoming(
             first
         }
         None => {
+            if let Ok(command) = &parsed {
+                if let Err(over) = budgets.admit(&sender, host.price(command), Instant::now()) {
+                    host.health.over_budget += 1;
+                    tracing::debug!(frame, "command over budget: {over}");
+                    if let Some(query) = query {
+                        let mut reply = Reply::refused(frame, over.to_string());
+                        reply.id = id;
+                        outbox.reply(query, Answer::new(&reply, 0).reply.into_vec());
+                    }
+                    return;
+                }
+            }
+            let began = Instant::now();
             let Handled {
                 mut reply,
                 due_at_step,
@@ -78,6 +105,7 @@ pub(super) fn apply_incoming(
                 error: reply.error.clone(),
             });
             let answer = Answer::new(&reply, due_at_step);
+            budgets.charge(&sender, began.elapsed());
             if let Some(id) = id {
                 answered.remember(sender, id, answer.clone());
             }

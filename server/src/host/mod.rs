@@ -17,6 +17,7 @@
 
 pub mod answered;
 mod apply;
+pub mod budget;
 mod clock;
 pub mod hosted;
 pub mod inbox;
@@ -41,6 +42,7 @@ use zenoh::Wait;
 
 use answered::Answered;
 use apply::{apply_incoming, Deferred};
+use budget::{BudgetLimits, Budgets};
 use clock::{Clock, Tick};
 use hosted::Hosted;
 use inbox::{Ask, Inbox, InboxLimits};
@@ -106,6 +108,8 @@ pub struct HostOptions {
     pub max_rate: f64,
     /// Per-sender rates and queue bounds (the command size bound is `limits`').
     pub inbox: InboxLimits,
+    /// How much of the stepping thread's time commands may take ([`budget`]).
+    pub budget: BudgetLimits,
     /// Journal every accepted command and stepped frame to this file ([`journal`]).
     pub journal: Option<PathBuf>,
     /// Rebuild the world from this journal, then go on appending to it.
@@ -135,6 +139,7 @@ impl HostOptions {
             limits: Limits::default(),
             max_rate: 1000.0,
             inbox: InboxLimits::default(),
+            budget: BudgetLimits::default(),
             journal: None,
             resume: None,
             accuracy: None,
@@ -380,6 +385,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let mut clock = Clock::new(interval(&host));
     let mut last_dt = host.world.config.dt;
     let mut deferred: Vec<Deferred> = Vec::new();
+    let mut budgets = Budgets::new(opts.budget, Instant::now());
     // The state query's answer, kept for the frame it was made at.
     let mut state: Option<((u64, u64), Vec<u8>)> = None;
     let mut last_report = (Instant::now(), Health::default());
@@ -433,10 +439,13 @@ pub fn run(opts: HostOptions) -> Result<()> {
             apply_incoming(
                 &mut host,
                 incoming,
-                &mut answered,
-                &mut deferred,
-                &mut journal,
-                &outbox,
+                apply::Boundary {
+                    answered: &mut answered,
+                    budgets: &mut budgets,
+                    deferred: &mut deferred,
+                    journal: &mut journal,
+                    outbox: &outbox,
+                },
             );
             if host.fresh {
                 // A new world's frame 0 goes out at once.
@@ -463,6 +472,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
 
         answered.forget();
         if last_drops.0.elapsed() >= DROPS_EVERY {
+            budgets.forget_full(Instant::now());
             let now = inbox.turned.unanswered.counts();
             if let Some(event) = drops_event(host.world.frame(), last_drops.1, now) {
                 outbox.publish_event(&event);
@@ -472,17 +482,19 @@ pub fn run(opts: HostOptions) -> Result<()> {
         if last_report.0.elapsed() >= TRIM_EVERY {
             give_back_memory();
             let now = health(&host, &inbox, &outbox);
-            if now.refused + now.rate_limited + now.queue_full + now.unsent
+            if now.refused + now.rate_limited + now.queue_full + now.unsent + now.over_budget
                 > last_report.1.refused
                     + last_report.1.rate_limited
                     + last_report.1.queue_full
                     + last_report.1.unsent
+                    + last_report.1.over_budget
             {
                 tracing::warn!(
                     refused = now.refused - last_report.1.refused,
                     rate_limited = now.rate_limited - last_report.1.rate_limited,
                     queue_full = now.queue_full - last_report.1.queue_full,
                     unsent = now.unsent - last_report.1.unsent,
+                    over_budget = now.over_budget - last_report.1.over_budget,
                     "turned away in the last 10 s"
                 );
             }

@@ -7,6 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use ricochet_engine::world::Limits;
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::NetworkArgs;
+use ricochet_server::host::budget::BudgetLimits;
 use ricochet_server::host::inbox::InboxLimits;
 use ricochet_server::host::HostOptions;
 
@@ -95,6 +96,18 @@ pub struct RunArgs {
     /// Commands a sender may send at once above its rate.
     #[arg(long, default_value_t = 500.0, value_name = "N")]
     pub sender_burst: f64,
+    /// Fraction of real time the commands of all senders may take of the stepping
+    /// thread, over time: each command is priced by what it touches before it runs and
+    /// charged what it took (docs/security.md, "The cost of a command").
+    #[arg(long, default_value_t = BudgetLimits::default().share, value_name = "FRACTION")]
+    pub command_share: f64,
+    /// Fraction of real time one sender's commands may take, over time.
+    #[arg(long, default_value_t = BudgetLimits::default().sender_share, value_name = "FRACTION")]
+    pub sender_share: f64,
+    /// Milliseconds of the stepping thread commands may take at once above their share;
+    /// a command priced above it is refused.
+    #[arg(long, default_value_t = BudgetLimits::default().burst.as_millis() as u64, value_name = "MS")]
+    pub command_burst_ms: u64,
     /// Commands (and, apart, requests) waiting for the frame boundary at most; past it
     /// they are dropped and requests answered so.
     #[arg(long, default_value_t = 4096, value_name = "N")]
@@ -263,6 +276,14 @@ impl RunArgs {
         if self.queue == 0 {
             bail!("--queue 0: at least one command must be able to wait");
         }
+        for (name, share) in [
+            ("--command-share", self.command_share),
+            ("--sender-share", self.sender_share),
+        ] {
+            if !(share > 0.0 && share <= 1.0) {
+                bail!("{name} must be above 0 and at most 1, not {share}");
+            }
+        }
         if !(self.max_rate.is_finite() && self.max_rate > 0.0) {
             bail!(
                 "--max-rate {}: must be a number of steps per second above 0",
@@ -281,6 +302,11 @@ impl RunArgs {
             max_frames: self.max_frames,
             dump: self.dump,
             max_rate: self.max_rate,
+            budget: BudgetLimits {
+                share: self.command_share,
+                sender_share: self.sender_share,
+                burst: std::time::Duration::from_millis(self.command_burst_ms),
+            },
             inbox: InboxLimits {
                 rate: self.sender_rate,
                 burst: self.sender_burst,
