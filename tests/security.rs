@@ -463,3 +463,78 @@ fn a_flood_of_whole_world_commands_does_not_stop_the_clock() {
         "the clock stalled: {stepped} stepped frames in 3 s, the longest wait {longest:?}"
     );
 }
+
+/// The world in `scene`'s text, hosted with `extra` flags, and a client: (server, client).
+fn host_text(dir: &std::path::Path, name: &str, text: &str, world: &str, extra: &[&str]) -> Server {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    let mut args = vec!["--scene", path.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    Server::launch(world, &args)
+}
+
+/// Frames stepped over frames due while `during` runs, from the server's own count.
+fn step_rate(client: &Client, dt: f64, during: impl FnOnce()) -> f64 {
+    let frames = |c: &Client| c.info(TIMEOUT).unwrap().health.unwrap().frames;
+    let (before, began) = (frames(client), Instant::now());
+    during();
+    let (after, took) = (frames(client), began.elapsed().as_secs_f64());
+    (after - before) as f64 / (took / dt)
+}
+
+#[test]
+fn commands_that_cost_the_whole_world_are_held_to_the_servers_share_of_time() {
+    // 90 000 static boxes: a step costs next to nothing, a `reset` rebuilds all of them
+    // (tens of ms here, more than a frame). A flood of resets for 3 s, from a sender of
+    // its own and as requests from another: without the budget the world would step one
+    // frame per reset (about half its rate or less); with it, resets take at most their
+    // share of time and the world keeps its clock.
+    let dir = temp_dir();
+    let scene = "[world]\ngravity = [0, -10]\nbounds = [[0, 0], [700, 700]]\n\n\
+                 [[generate]]\nkind = \"grid\"\nid = \"tile\"\ngroup = \"tiles\"\nshape = \"rect\"\n\
+                 size = [1, 1]\nstart = [5, 5]\nstep = [2, 2]\ncols = 300\nrows = 300\nmass = 0\n";
+    let server = host_text(dir.path(), "tiles.toml", scene, "costly", &[]);
+    let flooder = server.client();
+    let asker = server.client();
+    let watcher = server.client();
+    let reset = Command::Server(ServerCommand::Reset { paused: false });
+    let mut refused = Vec::new();
+    let rate = step_rate(&watcher, 1.0 / 60.0, || {
+        let began = Instant::now();
+        while began.elapsed() < Duration::from_secs(3) {
+            for _ in 0..20 {
+                flooder.send(&reset).unwrap();
+            }
+            if let Ok(reply) = asker.request(&reset, TIMEOUT) {
+                if !reply.ok {
+                    refused.push(reply.error.unwrap_or_default());
+                }
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    });
+    let health = watcher.info(TIMEOUT).unwrap().health.unwrap();
+    eprintln!(
+        "frames stepped over frames due under the flood: {:.1}%; {health:?}",
+        rate * 100.0
+    );
+    assert!(
+        rate > 0.9,
+        "the world stepped {:.0}% of its frames under the flood: {health:?}",
+        rate * 100.0
+    );
+    assert!(
+        health.applied >= 5,
+        "some resets ran, so the flood cost something: {health:?}"
+    );
+    assert!(
+        health.over_budget > 100,
+        "the budget refused the rest: {health:?}"
+    );
+    assert!(
+        refused
+            .iter()
+            .any(|e| e.contains("budget") && e.contains("retry in")),
+        "a refused request says why and when to retry: {refused:?}"
+    );
+}

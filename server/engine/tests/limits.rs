@@ -228,3 +228,42 @@ fn particles_are_priced_against_the_step_budget() {
     }
     assert!(w.work_estimate(&w.config) <= limits.step_work);
 }
+
+/// The step-work estimate against the measured step, per shipped scene: the time per
+/// unit of estimate the `step_work` default is calibrated from. Run with `--ignored
+/// --nocapture` on a new machine.
+#[test]
+#[ignore = "calibration: prints figures, asserts nothing a shared machine keeps"]
+fn step_work_against_measured_time() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes");
+    let mut paths: Vec<_> = ["", "suite", "bench"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(root.join(d)).unwrap())
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    for path in paths {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let Ok(mut w) = scene::parse_with(&text, &path, &[], &Limits::unbounded()) else {
+            continue;
+        };
+        let work = w.work_estimate(&w.config);
+        let (steps, began) = (120, std::time::Instant::now());
+        let mut worst = 0f64;
+        for _ in 0..steps {
+            let t = std::time::Instant::now();
+            w.step();
+            worst = worst.max(t.elapsed().as_secs_f64());
+        }
+        let mean = began.elapsed().as_secs_f64() / steps as f64;
+        eprintln!(
+            "{:>12.3e} units {:>9.3} ms mean {:>9.3} ms worst {:>8.2} ns/unit (worst step) {}",
+            work,
+            mean * 1e3,
+            worst * 1e3,
+            worst * 1e9 / work,
+            path.strip_prefix(&root).unwrap().display()
+        );
+    }
+}
