@@ -267,3 +267,44 @@ fn step_work_against_measured_time() {
         );
     }
 }
+
+#[test]
+fn real_time_limits_hold_every_shipped_scene_and_refuse_a_setting_that_stalls_one() {
+    // Every shipped scene loads under the limits of a served world.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes");
+    let limits = Limits::real_time();
+    let mut refused = Vec::new();
+    for dir in ["", "suite", "bench"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "toml") {
+                continue;
+            }
+            let text = std::fs::read_to_string(&path).unwrap();
+            if let Err(e) = scene::parse_with(&text, &path, &[], &limits) {
+                assert!(
+                    e.to_string().contains("step_work"),
+                    "{}: {e}",
+                    path.display()
+                );
+                refused.push(path.file_name().unwrap().to_string_lossy().into_owned());
+            }
+        }
+    }
+    assert!(refused.is_empty(), "{refused:#?}");
+    // A setting that held pyramid-100 at 1.4 steps a second is refused, named.
+    let path = root.join("pyramid-100.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let e = scene::parse_with(&text, &path, &["impulse_iterations=1900".into()], &limits)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("step_work"), "{e}");
+    let mut w = scene::parse_with(&text, &path, &[], &limits).unwrap();
+    let e = w
+        .apply(&Action::Set(
+            serde_json::from_str(r#"{"name":"impulse_iterations","value":1900}"#).unwrap(),
+        ))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("step_work"), "{e}");
+}

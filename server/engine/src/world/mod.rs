@@ -32,7 +32,7 @@ mod limits;
 mod step;
 mod store;
 
-pub use limits::{short, LimitError, Limits};
+pub use limits::{short, LimitError, Limits, REAL_TIME_STEP_WORK};
 
 /// Particle interactions with at least this many shapes bin them in a grid.
 pub const PARTICLE_GRID_MIN_SHAPES: usize = 8;

@@ -31,8 +31,9 @@ pub struct WorldFlags {
     #[arg(long = "set", value_name = "NAME=VALUE")]
     pub set: Vec<String>,
     /// Lower or raise a limit of the world, e.g. --limit bodies=5000
-    /// --limit step_work=1e7 (names and defaults: docs/security.md). A scene's
-    /// `[limits]` may lower these, never raise them. Repeatable.
+    /// --limit step_work=1e7 (names and defaults: docs/security.md; `run` starts from a
+    /// step's work of about a frame's time, step_work=1e6, `simulate` from 1e8). A
+    /// scene's `[limits]` may lower these, never raise them. Repeatable.
     #[arg(long = "limit", value_name = "NAME=VALUE")]
     pub limit: Vec<String>,
     /// Run the scene under the cheapest setting whose worst position error meets TOL
@@ -48,9 +49,10 @@ pub struct WorldFlags {
 }
 
 impl WorldFlags {
-    /// The limits `--limit` asks for, over the defaults.
-    pub fn limits(&self) -> anyhow::Result<Limits> {
-        Ok(Limits::default().with(&self.limit)?)
+    /// The limits `--limit` asks for, over `base`: [`Limits::real_time`] for a served
+    /// world, [`Limits::default`] for a headless run.
+    pub fn limits(&self, base: Limits) -> anyhow::Result<Limits> {
+        Ok(base.with(&self.limit)?)
     }
 }
 
@@ -292,7 +294,7 @@ impl RunArgs {
         }
         Ok(HostOptions {
             scenes_dir: scenes_dir(self.scenes, self.scene.as_deref()),
-            limits: self.how.limits()?,
+            limits: self.how.limits(Limits::real_time())?,
             scene: self.scene,
             world: self.world,
             network: self.network.server(),

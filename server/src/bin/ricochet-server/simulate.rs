@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use ricochet_engine::scene;
-use ricochet_engine::world::World;
+use ricochet_engine::world::{Limits, World};
 use ricochet_protocol::command::{parse_input_log, Replay, TimedAction};
 use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
 use ricochet_protocol::world::{self as wire, write_frame};
@@ -34,7 +34,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         wire_stats,
         keyframe_interval,
     } = args;
-    let limits = how.limits()?;
+    let limits = how.limits(Limits::default())?;
     let mut overrides = how.set;
     let (scene_path, dump_path, stats_path, inputs) = (
         scene_path.as_path(),
