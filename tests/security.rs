@@ -538,3 +538,52 @@ fn commands_that_cost_the_whole_world_are_held_to_the_servers_share_of_time() {
         "a refused request says why and when to retry: {refused:?}"
     );
 }
+
+#[test]
+fn what_a_key_frame_would_carry_is_bounded_before_it_is_accepted() {
+    // A server whose key frames may take 1 MB: the emitters demo fits; an emitter of
+    // 50 000 particles (up to 2.5 MB of key frame) is refused, named, and a small spawn
+    // still goes through.
+    let server = Server::start(
+        "emitters.toml",
+        "frame-bytes",
+        &["--max-frame-bytes", "1000000"],
+    );
+    let client = server.client();
+    let big = Command::World(Action::StartEmitter {
+        preset: "fire".into(),
+        count: 50_000,
+        at: [50.0, 50.0],
+    });
+    let reply = client.request(&big, TIMEOUT).unwrap();
+    assert!(!reply.ok);
+    let error = reply.error.unwrap_or_default();
+    assert!(error.contains("--max-frame-bytes"), "{error}");
+    let small = Command::World(Action::SpawnParticles {
+        preset: "fire".into(),
+        at: [50.0, 50.0],
+        count: 100,
+    });
+    let reply = client.request(&small, TIMEOUT).unwrap();
+    assert!(reply.ok, "{:?}", reply.error);
+    drop(server);
+
+    // A scene whose key frames would pass the bound is refused at start-up, named.
+    let out = Process::new(bin("ricochet-server"))
+        .args([
+            "run",
+            "--scene",
+            &scene("particles-100k.toml"),
+            "--max-frame-bytes",
+            "100000",
+        ])
+        .args(["--listen", &free_endpoint()])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("particles-100k.toml") && stderr.contains("--max-frame-bytes"),
+        "{stderr}"
+    );
+}

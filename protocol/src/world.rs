@@ -25,6 +25,48 @@ fn body_in<'a>(world: &'a World, b: &'a Body, info: &'a BodyInfo) -> BodyIn<'a> 
     }
 }
 
+/// Bytes of a key frame record at most, beside the names: a key gap and flags (6), a
+/// body's shape byte and size (9), two string lengths (10) and four coordinates (40).
+pub const KEY_BODY_BYTES: u64 = 6 + 9 + 10 + 40;
+/// Bytes of a particle's key frame record at most: a key gap and flags (6), two
+/// coordinates (20), two colours (8) and four numbers (16).
+pub const KEY_PARTICLE_BYTES: u64 = 6 + 20 + 8 + 16;
+/// Bytes of an emitter in a frame at most.
+pub const EMITTER_BYTES: u64 = 8 + 10;
+
+/// The bytes of a key frame of `world` at most, with `more_bodies` dynamic bodies (names
+/// of `more_name_bytes` in all) and `more_particles` particles besides its own: every
+/// dynamic body, every particle alive or still to come from an emitter, every emitter, at
+/// the largest size of each record. A bound to refuse scenes and actions by, before they
+/// run; the frames sent are smaller (quantised coordinates take 2 to 4 bytes, not 10).
+pub fn key_frame_bytes(
+    world: &World,
+    more_bodies: u64,
+    more_name_bytes: u64,
+    more_particles: u64,
+) -> u64 {
+    let (mut bodies, mut names) = (more_bodies, more_name_bytes);
+    for (b, info) in world.bodies().iter().zip(world.infos()) {
+        if !b.is_static() {
+            bodies += 1;
+            names += (info.id.len() + world.group_name(b.group).len()) as u64;
+        }
+    }
+    let particles = world.particles().len() as u64
+        + world
+            .emitters()
+            .iter()
+            .map(|e| u64::from(e.remaining))
+            .sum::<u64>()
+        + more_particles;
+    crate::frame::HEADER_BYTES as u64
+        + 3 * 10
+        + world.emitters().len() as u64 * EMITTER_BYTES
+        + bodies * KEY_BODY_BYTES
+        + names
+        + particles * KEY_PARTICLE_BYTES
+}
+
 /// The static bodies as a snapshot.
 pub fn statics_snapshot(world: &World) -> Vec<u8> {
     let statics: Vec<BodyIn> = world
@@ -149,5 +191,36 @@ pub fn stats_record(world: &World) -> StatsRecord {
         sleeping: s.sleeping,
         energy_change: s.energy_change,
         residual: s.residual,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn the_key_frame_bound_holds_on_shipped_scenes_as_they_run() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes");
+        for name in [
+            "emitters.toml",
+            "particles-10k.toml",
+            "pyramid-10.toml",
+            "suite/rain.toml",
+        ] {
+            let path = root.join(name);
+            let text = std::fs::read_to_string(&path).unwrap();
+            let mut world = ricochet_engine::scene::parse(&text, &path, &[]).unwrap();
+            let mut encoder = FrameEncoder::new(1);
+            for step in 0..120 {
+                world.step();
+                let bytes = encode_frame(&mut encoder, &world, 0.0, 0).len() as u64;
+                let bound = key_frame_bytes(&world, 0, 0, 0);
+                assert!(
+                    bytes <= bound,
+                    "{name} step {step}: {bytes} bytes over the bound {bound}"
+                );
+            }
+        }
     }
 }

@@ -73,6 +73,7 @@ pub struct Hosted {
     pub generation: u64,
     scenes_dir: Option<PathBuf>,
     limits: Limits,
+    max_frame_bytes: u64,
     pub health: Health,
     /// The setting picked for the scene's accuracy target, and why.
     pub accuracy: Option<String>,
@@ -92,6 +93,8 @@ impl Hosted {
         opts: &HostOptions,
     ) -> anyhow::Result<Self> {
         let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)?;
+        check_frame_bytes(&world, (0, 0, 0), opts.max_frame_bytes)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", scene_name.display()))?;
         Ok(Hosted {
             world,
             scene_text,
@@ -110,6 +113,7 @@ impl Hosted {
             generation: 0,
             scenes_dir: opts.scenes_dir.clone(),
             limits: opts.limits.clone(),
+            max_frame_bytes: opts.max_frame_bytes,
             health: Health::default(),
             accuracy: None,
         })
@@ -235,11 +239,13 @@ impl Hosted {
         let frame = self.world.frame();
         let mut due_at_step = 0;
         let result: Result<Vec<String>, String> = match command {
-            Command::World(action) => self
-                .world
-                .apply(action)
-                .map(|o| o.ids)
-                .map_err(|e| e.to_string()),
+            Command::World(action) => check_frame_bytes(
+                &self.world,
+                adds(action, self.world.limits()),
+                self.max_frame_bytes,
+            )
+            .and_then(|()| self.world.apply(action).map_err(|e| e.to_string()))
+            .map(|o| o.ids),
             Command::Server(ServerCommand::Pause) => {
                 self.paused = true;
                 Ok(Vec::new())
@@ -271,13 +277,17 @@ impl Hosted {
                     &self.scene_name,
                     &self.overrides,
                     &self.limits,
-                ) {
+                )
+                .map_err(|e| e.to_string())
+                .and_then(|world| {
+                    check_frame_bytes(&world, (0, 0, 0), self.max_frame_bytes).map(|()| world)
+                }) {
                     Ok(world) => {
                         self.replace_world(world);
                         self.paused = *paused;
                         Ok(Vec::new())
                     }
-                    Err(e) => Err(e.to_string()),
+                    Err(e) => Err(e),
                 }
             }
             Command::Server(ServerCommand::Load { path, text }) => {
@@ -332,6 +342,7 @@ impl Hosted {
     pub fn adopt_scene(&mut self, text: String, name: PathBuf) -> Result<(), String> {
         let world = scene::parse_with(&text, &name, &self.overrides, &self.limits)
             .map_err(|e| e.to_string())?;
+        check_frame_bytes(&world, (0, 0, 0), self.max_frame_bytes)?;
         self.scene_text = text;
         self.scene_name = name;
         self.replace_world(world);
@@ -354,6 +365,38 @@ impl Hosted {
             self.steps_run += 1;
         }
     }
+}
+
+/// What an action adds to a key frame before it runs: (dynamic bodies, bytes of their
+/// names, particles). A body's name is at most [`NAME_BYTES`] with its group's; particles
+/// count up to the per-action limit (over it, the world refuses the action itself).
+fn adds(action: &Action, limits: &Limits) -> (u64, u64, u64) {
+    match action {
+        Action::SpawnParticles { count, .. } | Action::StartEmitter { count, .. } => {
+            (0, 0, u64::from((*count).min(limits.particles_per_action)))
+        }
+        Action::SpawnMinion { .. }
+        | Action::SpawnDumbMinion { .. }
+        | Action::FireDyePack { .. } => (1, NAME_BYTES, 0),
+        _ => (0, 0, 0),
+    }
+}
+
+/// Bytes of a spawned body's id and group, at most (a generated id and a known group).
+const NAME_BYTES: u64 = 64;
+
+/// Refuses a world (with `more` of [`adds`] besides) whose key frame could pass `max`.
+fn check_frame_bytes(world: &World, more: (u64, u64, u64), max: u64) -> Result<(), String> {
+    let (bodies, names, particles) = more;
+    let bytes = wire::key_frame_bytes(world, bodies, names, particles);
+    if bytes > max {
+        return Err(format!(
+            "a key frame would take up to {:.1} MB, over the server's limit of {:.1} MB (--max-frame-bytes)",
+            bytes as f64 / 1e6,
+            max as f64 / 1e6
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -51,6 +51,11 @@ use outbox::Outbox;
 
 pub use hosted::{MAX_PENDING_STEPS, MAX_STEPS_PER_COMMAND};
 
+/// Bytes of a key frame at most, by default: the frames of 160 000 particles or so (the
+/// shipped particles-100k scene's take at most 5 MB); a world whose key frames pass it
+/// would cost every viewer tens of MB a second and the server their encoding each frame.
+pub const DEFAULT_MAX_FRAME_BYTES: u64 = 8 << 20;
+
 /// Late steps run back to back before the clock gives up and re-anchors.
 pub const MAX_CATCH_UP: u64 = 5;
 /// Commands handled per frame boundary at most; the rest wait for the next one, so a
@@ -106,6 +111,9 @@ pub struct HostOptions {
     /// Steps per second of wall time at most: a world whose `dt` is shorter runs slower
     /// than real time rather than flooding its viewers.
     pub max_rate: f64,
+    /// Bytes of a key frame at most, estimated before a scene or an action that adds
+    /// bodies or particles is accepted ([`ricochet_protocol::world::key_frame_bytes`]).
+    pub max_frame_bytes: u64,
     /// Per-sender rates and queue bounds (the command size bound is `limits`').
     pub inbox: InboxLimits,
     /// How much of the stepping thread's time commands may take ([`budget`]).
@@ -138,6 +146,7 @@ impl HostOptions {
             scenes_dir: None,
             limits: Limits::default(),
             max_rate: 1000.0,
+            max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
             inbox: InboxLimits::default(),
             budget: BudgetLimits::default(),
             journal: None,

@@ -9,7 +9,7 @@ use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::NetworkArgs;
 use ricochet_server::host::budget::BudgetLimits;
 use ricochet_server::host::inbox::InboxLimits;
-use ricochet_server::host::HostOptions;
+use ricochet_server::host::{HostOptions, DEFAULT_MAX_FRAME_BYTES};
 
 #[derive(Parser)]
 #[command(
@@ -90,6 +90,10 @@ pub struct RunArgs {
     /// than real time instead of flooding its viewers.
     #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
     pub max_rate: f64,
+    /// Bytes of a key frame at most: a scene, a spawn or an emitter whose particles and
+    /// bodies would pass it (estimated at the largest size of each record) is refused.
+    #[arg(long, default_value_t = DEFAULT_MAX_FRAME_BYTES, value_name = "BYTES")]
+    pub max_frame_bytes: u64,
     /// Commands a second each sender may send over time (a sender is the zenoh id its
     /// session declares; Ricochet's clients declare theirs). Over it, commands are
     /// dropped and requests answered so.
@@ -304,6 +308,7 @@ impl RunArgs {
             max_frames: self.max_frames,
             dump: self.dump,
             max_rate: self.max_rate,
+            max_frame_bytes: self.max_frame_bytes,
             budget: BudgetLimits {
                 share: self.command_share,
                 sender_share: self.sender_share,
