@@ -1,7 +1,7 @@
 //! The frame boundary's work on one command or request: a retried id gets its first
 //! answer; anything else is handled by the world, journaled, and made an event.
 
-use ricochet_protocol::command::{Command, Event, Reply, MAX_ERROR_BYTES};
+use ricochet_protocol::command::{Command, Event, Reply, ServerCommand, MAX_ERROR_BYTES};
 use zenoh::query::Query;
 
 use std::time::Instant;
@@ -10,7 +10,8 @@ use super::answered::{Answer, Answered};
 use super::budget::Budgets;
 use super::hosted::{Handled, Hosted};
 use super::inbox::Incoming;
-use super::journal::Journal;
+use super::inbox::Sender;
+use super::journal::{Intent, Journal};
 use super::outbox::Outbox;
 
 /// A reply waiting for the steps its `step` asked for.
@@ -67,11 +68,19 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
                 }
             }
             let began = Instant::now();
+            let mut journaled_as = Journaled::Written;
             let Handled {
                 mut reply,
                 due_at_step,
             } = match &parsed {
-                Ok(command) => host.handle(command),
+                Ok(command) => match journal.as_mut() {
+                    None => host.handle(command),
+                    Some(journal) => {
+                        let (handled, how) = journaled(host, command, &sender, &id, journal);
+                        journaled_as = how;
+                        handled
+                    }
+                },
                 Err(error) => {
                     host.health.refused += 1;
                     Handled {
@@ -87,8 +96,8 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
                 pending = host.pending_steps,
                 "applied"
             );
-            if let (Some(journal), Ok(command)) = (journal.as_mut(), &parsed) {
-                journal.handled(command, &reply, &sender, &id, host);
+            if let (Some(journal), Journaled::Written) = (journal.as_mut(), journaled_as) {
+                journal.replied(&reply);
             }
             if !reply.ok {
                 tracing::debug!(
@@ -106,7 +115,9 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
             });
             let answer = Answer::new(&reply, due_at_step);
             budgets.charge(&sender, began.elapsed());
-            if let Some(id) = id {
+            // A command refused because the journal could not be written is tried afresh
+            // when sent again: the disk may have room by then.
+            if let (Some(id), false) = (id, journaled_as == Journaled::Failed) {
                 answered.remember(sender, id, answer.clone());
             }
             answer
@@ -125,6 +136,54 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
     }
 }
 
+/// What the journal holds of a command.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Journaled {
+    /// Its line, written before it ran.
+    Written,
+    /// Nothing: it was refused before it could run (a scene that cannot be read).
+    Refused,
+    /// Nothing: its line could not be written, so it did not run.
+    Failed,
+}
+
+/// Runs `command` with the journal: what it is about to do is written first, and a
+/// command whose line cannot be written is refused, not run.
+fn journaled(
+    host: &mut Hosted,
+    command: &Command,
+    sender: &Sender,
+    id: &Option<String>,
+    journal: &mut Journal,
+) -> (Handled, Journaled) {
+    let frame = host.world.frame();
+    let refused = |host: &mut Hosted, e: anyhow::Error| {
+        tracing::error!("{e:#}");
+        let error = format!("not applied: the server cannot write its journal ({e:#})");
+        (host.refuse(&error), Journaled::Failed)
+    };
+    match command {
+        Command::Server(ServerCommand::Load { path, text }) => {
+            let (text, name) = match host.scene_to_load(path.as_deref(), text.as_deref()) {
+                Ok(scene) => scene,
+                Err(e) => return (host.refuse(&e), Journaled::Refused),
+            };
+            let intent = Intent::Load {
+                name: &name,
+                text: &text,
+            };
+            match journal.before(intent, frame, sender, id) {
+                Ok(()) => (host.handle_scene(text, name), Journaled::Written),
+                Err(e) => refused(host, e),
+            }
+        }
+        _ => match journal.before(Intent::Apply(command), frame, sender, id) {
+            Ok(()) => (host.handle(command), Journaled::Written),
+            Err(e) => refused(host, e),
+        },
+    }
+}
+
 /// The command an event shows: a refused one only when its JSON is at most
 /// [`MAX_ERROR_BYTES`] (a refused `load` of a 60 KiB scene text is not sent to every
 /// subscriber; the refusal's error names it short).
@@ -136,6 +195,38 @@ fn echoed(command: Option<Command>, ok: bool) -> Option<Command> {
 mod tests {
     use super::*;
     use ricochet_protocol::command::ServerCommand;
+
+    #[test]
+    fn a_command_whose_journal_line_cannot_be_written_is_refused_and_not_run() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/emitters.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let opts = crate::host::HostOptions::for_tests("full-disk");
+        let mut host = Hosted::load(text, path, &opts).unwrap();
+        let before = host.world.bodies().len();
+        let spawn = Command::parse(br#"{"do":"spawn_dumb_minion","at":[100,95]}"#).unwrap();
+        let id = Some("r1".to_string());
+        let mut full = Journal::full();
+        let (handled, how) = journaled(&mut host, &spawn, &None, &id, &mut full);
+        assert!(how == Journaled::Failed);
+        assert!(!handled.reply.ok);
+        let error = handled.reply.error.unwrap_or_default();
+        assert!(
+            error.contains("not applied") && error.contains("journal"),
+            "{error}"
+        );
+        assert_eq!(
+            host.world.bodies().len(),
+            before,
+            "the spawn ran unjournaled"
+        );
+        // With a journal that takes the line, the same command runs.
+        let dir = tempfile::tempdir().unwrap();
+        let mut journal = Journal::create(&dir.path().join("j"), "w", &host, &opts).unwrap();
+        let (handled, how) = journaled(&mut host, &spawn, &None, &id, &mut journal);
+        assert!(how == Journaled::Written && handled.reply.ok);
+        assert_eq!(host.world.bodies().len(), before + 1);
+    }
 
     #[test]
     fn a_refused_command_is_echoed_only_when_short() {

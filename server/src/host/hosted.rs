@@ -290,10 +290,33 @@ impl Hosted {
                     Err(e) => Err(e),
                 }
             }
-            Command::Server(ServerCommand::Load { path, text }) => {
-                self.load_scene(path.as_deref(), text.as_deref())
-            }
+            Command::Server(ServerCommand::Load { path, text }) => self
+                .scene_to_load(path.as_deref(), text.as_deref())
+                .and_then(|(text, name)| self.adopt_scene(text, name))
+                .map(|()| Vec::new()),
         };
+        self.handled(frame, result, due_at_step)
+    }
+
+    /// A `load` whose scene was read already (a journaled load carries its text).
+    pub fn handle_scene(&mut self, text: String, name: PathBuf) -> Handled {
+        let frame = self.world.frame();
+        let result = self.adopt_scene(text, name).map(|()| Vec::new());
+        self.handled(frame, result, 0)
+    }
+
+    /// A command refused before the world saw it (no scene to load, no journal).
+    pub fn refuse(&mut self, error: &str) -> Handled {
+        let frame = self.world.frame();
+        self.handled(frame, Err(error.to_string()), 0)
+    }
+
+    fn handled(
+        &mut self,
+        frame: u64,
+        result: Result<Vec<String>, String>,
+        mut due_at_step: u64,
+    ) -> Handled {
         let reply = match result {
             Ok(ids) => {
                 self.health.applied += 1;
@@ -314,12 +337,14 @@ impl Hosted {
         Handled { reply, due_at_step }
     }
 
-    fn load_scene(
-        &mut self,
+    /// The text and name of the scene a `load` names: read from the scenes directory, or
+    /// the text it carries.
+    pub fn scene_to_load(
+        &self,
         path: Option<&str>,
         text: Option<&str>,
-    ) -> Result<Vec<String>, String> {
-        let (text, name) = match (path, text) {
+    ) -> Result<(String, PathBuf), String> {
+        Ok(match (path, text) {
             (Some(p), None) => {
                 let file = match &self.scenes_dir {
                     Some(dir) => resolve_scene(dir, p)?,
@@ -333,9 +358,7 @@ impl Hosted {
             }
             (None, Some(t)) => (t.to_string(), PathBuf::from("<loaded scene>")),
             _ => return Err("`load` takes either `path` or `text`".into()),
-        };
-        self.adopt_scene(text, name)?;
-        Ok(Vec::new())
+        })
     }
 
     /// Replaces the world by the scene `text` (named `name` in errors and the info).

@@ -6,12 +6,19 @@
 //! (name and full text), the `[world]` overrides and the limits it ran under. Then, in the
 //! order they happened:
 //!
-//! - `{"frame": F, "command": {...}, "reply": {...}}`: a command applied at the boundary
-//!   after frame F (with `sender` and `id` when it had an id; a refused command is written
-//!   only when it had an id, so a retry after a resume gets the same answer);
-//! - `{"frame": F, "scene": {"name": ..., "text": ...}, "reply": {...}}`: a `load`, with the
-//!   scene's text, so a resume needs no file the server read;
+//! - `{"frame": F, "apply": {...}}`: a command about to be applied at the boundary after
+//!   frame F (with `sender` and `id` when it had an id), written *before* it runs: a
+//!   command whose line cannot be written is refused, never applied unjournaled;
+//! - `{"frame": F, "load": {"name": ..., "text": ...}}`: a `load`, with the scene's text
+//!   read before it runs, so a resume needs no file the server read;
+//! - `{"replied": {...}}`: the reply of the command on the line before, when it had an id
+//!   (a retry after a resume gets the same answer; a resume recomputes every reply, and
+//!   this one is what the client was told);
 //! - `{"at": F}`: frame F was stepped (and published).
+//!
+//! Journals of version 2 wrote a command once it ran, with its reply (`{"frame": F,
+//! "command": {...}, "reply": {...}}` and `{"frame": F, "scene": ..., "reply": ...}`): they
+//! still resume.
 //!
 //! Each line ends with a tab and the CRC-32 of the text before it (8 hexadecimal digits): a
 //! line changed or damaged after it was written is refused on resume, naming it, instead
@@ -40,8 +47,9 @@ use super::hosted::Hosted;
 use super::inbox::Sender;
 use super::HostOptions;
 
-/// The journal's format version: 2 has a checksum on every line, 1 none.
-pub const VERSION: u32 = 2;
+/// The journal's format version: 3 writes a command before it runs, 2 once it ran; both
+/// have a checksum on every line, 1 none.
+pub const VERSION: u32 = 3;
 
 /// A journal line as written: its text, a tab and the text's CRC-32.
 fn signed(text: &str) -> String {
@@ -111,6 +119,33 @@ enum Line {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         id: Option<String>,
     },
+    Apply {
+        frame: u64,
+        apply: Command,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Load {
+        frame: u64,
+        load: SceneText,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Replied {
+        replied: Reply,
+    },
+}
+
+/// What a command is about to do, as the journal writes it before it runs.
+pub enum Intent<'a> {
+    /// Any command but a `load`.
+    Apply(&'a Command),
+    /// A `load`, with the scene's text as read.
+    Load { name: &'a Path, text: &'a str },
 }
 
 /// An open journal, appended to.
@@ -161,41 +196,57 @@ impl Journal {
         self.line(&Line::At { at: frame });
     }
 
-    /// A command was handled: written when it was applied, or when it had an id.
-    pub fn handled(
+    /// Writes what a command is about to do, before it runs: an error means the line
+    /// was not written, and the command must not run.
+    pub fn before(
         &mut self,
-        command: &Command,
-        reply: &Reply,
+        intent: Intent<'_>,
+        frame: u64,
         sender: &Sender,
         id: &Option<String>,
-        host: &Hosted,
-    ) {
-        if !reply.ok && id.is_none() {
-            return;
-        }
+    ) -> Result<()> {
         let (sender, id) = (sender.clone(), id.clone());
-        let line = match command {
-            Command::Server(ricochet_protocol::command::ServerCommand::Load { .. }) if reply.ok => {
-                Line::Scene {
-                    frame: reply.frame,
-                    scene: SceneText {
-                        name: host.scene_name.clone(),
-                        text: host.scene_text.clone(),
-                    },
-                    reply: reply.clone(),
-                    sender,
-                    id,
-                }
-            }
-            _ => Line::Command {
-                frame: reply.frame,
-                command: command.clone(),
-                reply: reply.clone(),
+        let line = match intent {
+            Intent::Apply(command) => Line::Apply {
+                frame,
+                apply: command.clone(),
+                sender,
+                id,
+            },
+            Intent::Load { name, text } => Line::Load {
+                frame,
+                load: SceneText {
+                    name: name.to_path_buf(),
+                    text: text.to_string(),
+                },
                 sender,
                 id,
             },
         };
-        self.line(&line);
+        self.write(&serde_json::to_string(&line).expect("journal lines serialise"))
+    }
+
+    /// A journal every write to fails, as on a full disk: `/dev/full`.
+    #[cfg(test)]
+    pub(super) fn full() -> Journal {
+        let path = PathBuf::from("/dev/full");
+        let file = OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .expect("/dev/full");
+        Journal {
+            out: BufWriter::new(file),
+            path,
+        }
+    }
+
+    /// The reply of the command [`Journal::before`] wrote last, if it had an id.
+    pub fn replied(&mut self, reply: &Reply) {
+        if reply.id.is_some() {
+            self.line(&Line::Replied {
+                replied: reply.clone(),
+            });
+        }
     }
 }
 
@@ -300,10 +351,12 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     let header: Header =
         serde_json::from_str(&raw).with_context(|| format!("{}: not a journal header", at(1)))?;
     match (header.journal, signed) {
-        (VERSION, true) | (1, false) => {}
-        (VERSION, false) => bail!("{}: a version {VERSION} header without its checksum", at(1)),
+        (VERSION | 2, true) | (1, false) => {}
+        (v @ (2 | VERSION), false) => {
+            bail!("{}: a version {v} header without its checksum", at(1))
+        }
         (v, _) => bail!(
-            "{}: journal version {v} (this server reads 1 and {VERSION})",
+            "{}: journal version {v} (this server reads 1 to {VERSION})",
             at(1)
         ),
     }
@@ -340,6 +393,9 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     // The `step`s with ids whose steps had not all run (line, due at step): answered when
     // they have.
     let mut running: Vec<(usize, u64)> = Vec::new();
+    // The answers of the commands with ids written before they ran (version 3), as the
+    // replay recomputes them, for the last window of frames: (frame, sender, id, answer).
+    let mut recent: VecDeque<(u64, Sender, String, Answer)> = VecDeque::new();
     while let Some((n, raw)) = lines.next(path)? {
         let line: Line = serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
         match line {
@@ -391,6 +447,28 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                 host.adopt_scene(scene.text, scene.name)
                     .map_err(|e| anyhow!("{}: the loaded scene: {e}", at(n)))?;
             }
+            // Written before it ran: replayed as it ran then, refused or not.
+            Line::Apply {
+                frame,
+                apply,
+                sender,
+                id,
+            } => {
+                check_frame(&host, frame, &at(n))?;
+                let handled = host.handle(&apply);
+                keep_answer(&mut recent, frame, sender, id, handled, window);
+            }
+            Line::Load {
+                frame,
+                load,
+                sender,
+                id,
+            } => {
+                check_frame(&host, frame, &at(n))?;
+                let handled = host.handle_scene(load.text, load.name);
+                keep_answer(&mut recent, frame, sender, id, handled, window);
+            }
+            Line::Replied { .. } => {}
         }
     }
     let whole = lines.whole;
@@ -449,6 +527,10 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
             now.checked_sub(age).unwrap_or(now),
         );
     }
+    for (frame, sender, id, answer) in recent.into_iter().filter(|r| r.0 + window > last) {
+        let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
+        answered.remember_at(sender, id, answer, now.checked_sub(age).unwrap_or(now));
+    }
     // What the server counts from here is what it does live, not the replay.
     host.health = Default::default();
     // Go on appending, after a line cut short if there is one.
@@ -471,6 +553,25 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         },
         opts,
     })
+}
+
+/// Keeps the answer of a replayed command with an id, and only the last `window` frames'.
+fn keep_answer(
+    recent: &mut VecDeque<(u64, Sender, String, Answer)>,
+    frame: u64,
+    sender: Sender,
+    id: Option<String>,
+    handled: super::hosted::Handled,
+    window: u64,
+) {
+    while recent.front().is_some_and(|r| r.0 + window <= frame) {
+        recent.pop_front();
+    }
+    if let Some(id) = id {
+        let mut reply = handled.reply;
+        reply.id = Some(id.clone());
+        recent.push_back((frame, sender, id, Answer::new(&reply, handled.due_at_step)));
+    }
 }
 
 fn check_frame(host: &Hosted, frame: u64, at: &str) -> Result<()> {
@@ -606,6 +707,48 @@ mod tests {
     }
 
     #[test]
+    fn a_journal_of_version_2_with_commands_written_after_they_ran_still_resumes() {
+        use ricochet_protocol::command::Action;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let frame = journal_of(&path, 3);
+        // Version 2: the command with its reply, once it ran, then more steps.
+        let press = Command::World(Action::Set(
+            serde_json::from_str(r#"{"name":"gravity","value":[0,-9]}"#).unwrap(),
+        ));
+        let opts = options();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let header = text.lines().next().unwrap().rsplit_once('\t').unwrap().0;
+        let header = header.replacen(&format!("\"journal\":{VERSION}"), "\"journal\":2", 1);
+        let mut lines = vec![signed(&header)];
+        lines.extend(text.lines().skip(1).map(str::to_string));
+        let reply = Reply {
+            ok: true,
+            frame,
+            ids: Vec::new(),
+            error: None,
+            id: Some("p".into()),
+        };
+        let line = Line::Command {
+            frame,
+            command: press.clone(),
+            reply,
+            sender: Some("peer".into()),
+            id: Some("p".into()),
+        };
+        lines.push(signed(&serde_json::to_string(&line).unwrap()));
+        lines.push(signed(&format!("{{\"at\":{}}}", frame + 1)));
+        std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+        let resumed = resume(&path, &opts).unwrap();
+        assert_eq!(resumed.host.world.frame(), frame + 1);
+        assert_eq!(
+            resumed.host.world.config.gravity.y, -9.0,
+            "the command was replayed"
+        );
+        assert!(resumed.answered.get(&Some("peer".into()), "p").is_some());
+    }
+
+    #[test]
     fn a_journal_of_version_1_without_checksums_still_resumes() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("world.journal");
@@ -615,7 +758,7 @@ mod tests {
             .lines()
             .map(|l| l.rsplit_once('\t').unwrap().0.to_string() + "\n")
             .collect::<String>()
-            .replacen("\"journal\":2", "\"journal\":1", 1);
+            .replacen(&format!("\"journal\":{VERSION}"), "\"journal\":1", 1);
         assert!(!v1.contains('\t') && v1.contains("\"journal\":1"), "{v1}");
         std::fs::write(&path, &v1).unwrap();
         let mut resumed = resume(&path, &options()).unwrap();
@@ -699,14 +842,24 @@ mod tests {
                 _ => None,
             };
             if let Some(id) = id {
-                let reply = host.handle(&press).reply;
-                journal.handled(&press, &reply, &sender, &Some(id.into()), &host);
+                let id = Some(id.to_string());
+                journal
+                    .before(Intent::Apply(&press), frame, &sender, &id)
+                    .unwrap();
+                let mut reply = host.handle(&press).reply;
+                reply.id = id;
+                journal.replied(&reply);
             }
             if frame == end - 50 {
                 let step = Command::Server(ServerCommand::Step { n: 1000 });
-                let handled = host.handle(&step);
+                let id = Some("steps".to_string());
+                journal
+                    .before(Intent::Apply(&step), frame, &sender, &id)
+                    .unwrap();
+                let mut handled = host.handle(&step);
                 step_due = handled.due_at_step;
-                journal.handled(&step, &handled.reply, &sender, &Some("steps".into()), &host);
+                handled.reply.id = id;
+                journal.replied(&handled.reply);
             }
             host.advance();
             journal.stepped(host.world.frame());
