@@ -3,7 +3,7 @@
 //! against the bytes that remain before anything is allocated for it, and a payload that
 //! fails anywhere leaves the state as it was.
 
-use super::records::{self};
+use super::records::{self, Change, Section};
 use super::wire::Reader;
 use super::{
     Body, DecodeError, EmitterIn, FrameStats, Particle, COLLIDED, KIND_DELTA, KIND_STATICS, MAGIC,
@@ -113,30 +113,34 @@ impl FrameDecoder {
                     .map_err(|_| DecodeError::Malformed("emitter count over 32 bits".into()))?,
             });
         }
+        // A delta is read against what is held; a key frame or a snapshot against nothing.
         let delta = header.kind == KIND_DELTA;
-        let held = if delta {
-            self.bodies.clone()
-        } else {
-            Vec::new()
-        };
-        let bodies = read_bodies(&mut r, held, !delta)?;
-        let held = if delta {
-            self.particles.clone()
-        } else {
-            Vec::new()
-        };
-        let particles = read_particles(&mut r, held, header.frame)?;
+        let bodies = read_bodies(&mut r, if delta { &self.bodies } else { &[] }, !delta)?;
+        let particles = read_particles(
+            &mut r,
+            if delta {
+                self.particles.clone()
+            } else {
+                Vec::new()
+            },
+            header.frame,
+        )?;
         if r.at != bytes.len() {
             return Err(DecodeError::Malformed(format!(
                 "{} bytes left over",
                 bytes.len() - r.at
             )));
         }
+        // All of it was read and checked: now it is applied.
         if header.kind == KIND_STATICS {
-            self.statics = bodies;
+            self.statics.clear();
+            records::fold(&mut self.statics, bodies, patch_body);
             return Ok(header);
         }
-        self.bodies = bodies;
+        if !delta {
+            self.bodies.clear();
+        }
+        records::fold(&mut self.bodies, bodies, patch_body);
         self.particles = particles;
         self.emitters = emitters;
         self.frame = header.frame;
@@ -153,18 +157,37 @@ impl FrameDecoder {
 }
 
 /// Adds a change read off the wire to a quantised coordinate, refusing an overflow.
-fn add(q: &mut i64, change: i64) -> Result<(), DecodeError> {
-    *q = q
-        .checked_add(change)
-        .ok_or_else(|| DecodeError::Malformed("a coordinate overflows".into()))?;
-    Ok(())
+fn add(q: i64, change: i64) -> Result<i64, DecodeError> {
+    q.checked_add(change)
+        .ok_or_else(|| DecodeError::Malformed("a coordinate overflows".into()))
 }
 
-fn read_bodies(r: &mut Reader, held: Vec<Body>, fresh: bool) -> Result<Vec<Body>, DecodeError> {
+/// A held body's new state, read and checked.
+struct BodyPatch {
+    qpos: Option<[i64; 2]>,
+    qvel: Option<[i64; 2]>,
+    collided: bool,
+}
+
+fn patch_body(b: &mut Body, p: BodyPatch) {
+    if let Some(qpos) = p.qpos {
+        b.qpos = qpos;
+    }
+    if let Some(qvel) = p.qvel {
+        b.qvel = qvel;
+    }
+    b.collided = p.collided;
+}
+
+fn read_bodies(
+    r: &mut Reader,
+    held: &[Body],
+    fresh: bool,
+) -> Result<Section<Body, BodyPatch>, DecodeError> {
     records::read(r, held, |r, key, flags, existing| {
         if flags & REMOVED != 0 {
             return match existing {
-                Some(_) => Ok(None),
+                Some(_) => Ok(Change::Removed),
                 None => Err(DecodeError::Malformed(format!(
                     "removal of unknown body {key}"
                 ))),
@@ -177,7 +200,7 @@ fn read_bodies(r: &mut Reader, held: Vec<Body>, fresh: bool) -> Result<Vec<Body>
             let group = r.str()?;
             let qpos = [r.svarint()?, r.svarint()?];
             let qvel = [r.svarint()?, r.svarint()?];
-            return Ok(Some(Body {
+            return Ok(Change::New(Body {
                 key,
                 id,
                 group,
@@ -188,22 +211,24 @@ fn read_bodies(r: &mut Reader, held: Vec<Body>, fresh: bool) -> Result<Vec<Body>
                 collided: flags & COLLIDED != 0,
             }));
         }
-        let mut b = existing.ok_or_else(|| {
+        let b = existing.ok_or_else(|| {
             DecodeError::Malformed(format!(
                 "update of unknown body {key}{}",
                 if fresh { " in a key frame" } else { "" }
             ))
         })?;
+        let mut patch = BodyPatch {
+            qpos: None,
+            qvel: None,
+            collided: flags & COLLIDED != 0,
+        };
         if flags & POS != 0 {
-            add(&mut b.qpos[0], r.svarint()?)?;
-            add(&mut b.qpos[1], r.svarint()?)?;
+            patch.qpos = Some([add(b.qpos[0], r.svarint()?)?, add(b.qpos[1], r.svarint()?)?]);
         }
         if flags & VEL != 0 {
-            add(&mut b.qvel[0], r.svarint()?)?;
-            add(&mut b.qvel[1], r.svarint()?)?;
+            patch.qvel = Some([add(b.qvel[0], r.svarint()?)?, add(b.qvel[1], r.svarint()?)?]);
         }
-        b.collided = flags & COLLIDED != 0;
-        Ok(Some(b))
+        Ok(Change::Patch(patch))
     })
 }
 
@@ -212,7 +237,7 @@ fn read_particles(
     held: Vec<Particle>,
     frame: u64,
 ) -> Result<Vec<Particle>, DecodeError> {
-    records::read(r, held, |r, id, flags, existing| {
+    records::read_into_copy(r, held, |r, id, flags, existing| {
         if flags & REMOVED != 0 {
             return Ok(None);
         }
@@ -236,8 +261,7 @@ fn read_particles(
         let mut p = existing
             .ok_or_else(|| DecodeError::Malformed(format!("update of unknown particle {id}")))?;
         if flags & POS != 0 {
-            add(&mut p.qpos[0], r.svarint()?)?;
-            add(&mut p.qpos[1], r.svarint()?)?;
+            p.qpos = [add(p.qpos[0], r.svarint()?)?, add(p.qpos[1], r.svarint()?)?];
         }
         Ok(Some(p))
     })

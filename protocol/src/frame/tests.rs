@@ -273,3 +273,31 @@ fn garbage_is_refused_without_panicking() {
     ));
     dec.apply(&good).unwrap();
 }
+
+#[test]
+fn a_delta_refused_at_its_end_changes_no_body_it_read_before() {
+    // Bodies are patched in place once a delta has been read whole: a delta cut short in
+    // its particle section, after its body records were read, leaves every body as it was,
+    // whether the delta only moves bodies or also adds and removes some.
+    let mut enc = FrameEncoder::new(60);
+    let mut dec = FrameDecoder::new();
+    let mut cloud = Cloud::default();
+    cloud.push(3, 10.0, 20.0);
+    let bodies = [body(0, "a", [1.0, 2.0]), body(1, "b", [5.0, 5.0])];
+    let f0 = enc.encode(0, 0.0, &FrameStats::default(), &[], &bodies, &cloud.view());
+    dec.apply(&f0).unwrap();
+    let moved = [body(0, "a", [1.5, 2.0]), body(1, "b", [5.0, 4.0])];
+    let changed = [body(1, "b", [5.0, 4.0]), body(2, "new", [7.0, 7.0])];
+    cloud.x[0] = 10.5;
+    for (frame, now) in [(1, &moved[..]), (1, &changed[..])] {
+        let mut enc = enc.clone();
+        let delta = enc.encode(frame, 0.1, &FrameStats::default(), &[], now, &cloud.view());
+        let before = (dec.bodies.clone(), dec.particles.clone(), dec.frame);
+        assert!(dec.clone().apply(&delta).is_ok(), "the whole delta applies");
+        assert!(dec.apply(&delta[..delta.len() - 1]).is_err());
+        assert_eq!(
+            (dec.bodies.clone(), dec.particles.clone(), dec.frame),
+            before
+        );
+    }
+}
