@@ -226,13 +226,13 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
 
     // The impostor answers the world's requests and info, beside the server.
     let asked = Arc::new(AtomicUsize::new(0));
-    let _rpc = answer_every_query(
+    let rpc = answer_every_query(
         impostor.session(),
         &impostor.keys().rpc,
         br#"{"ok":true,"frame":0,"ids":["impostor"]}"#,
         asked.clone(),
     );
-    let _info = answer_every_query(
+    let info = answer_every_query(
         impostor.session(),
         &impostor.keys().info,
         br#"{"scene":"impostor","bounds":[[0,0],[1,1]],"dt":0.1,"groups":[],"generation":0}"#,
@@ -318,6 +318,40 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
         Command::World(Action::Deselect),
     );
     assert!(reply.ok && reply.ids.is_empty(), "{reply:?}");
+
+    // The impostor stops answering and holds a spare token: the server, the one holder
+    // that answers, is taken as the server, its frames too; the world is not refused.
+    drop((rpc, info));
+    let _spare = impostor
+        .session()
+        .liveliness()
+        .declare_token(
+            impostor
+                .keys()
+                .alive_token(&impostor.session().zid().to_string()),
+        )
+        .wait()
+        .unwrap();
+    let fresh = Client::open(&both, "guarded").unwrap();
+    let began = Instant::now();
+    while fresh.servers(TIMEOUT).unwrap().len() < 2 {
+        assert!(began.elapsed() < TIMEOUT, "the spare token never showed");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let reply = request(&fresh, Command::World(Action::Deselect));
+    assert!(reply.ok && reply.ids.is_empty(), "{reply:?}");
+    let frames = fresh.frames().unwrap();
+    let began = Instant::now();
+    while frames
+        .recv_timeout(Duration::from_millis(200))
+        .unwrap()
+        .is_none()
+    {
+        assert!(
+            began.elapsed() < TIMEOUT,
+            "no frame taken from the pinned server"
+        );
+    }
 }
 
 /// A flood of snapshot queries from one session is answered at the sender's query rate

@@ -233,26 +233,42 @@ class Sender:
         return zenoh.SourceInfo(self.publisher.id, self.sequence)
 
 
+# Per world, the holder of its token that alone answered when several held it: the server
+# (the others hold spare tokens without serving the world).
+_pinned = {}
+
+
 def server_replies(session, world, key, timeout, payload=None, sender=None):
     """The replies to a query on `key` from the world's server only: the peer holding the
-    world's liveliness token. Replies from other peers are skipped with a warning; a world
-    whose token two peers hold is refused. With a `Sender`, the query says who sent it."""
+    world's liveliness token. Replies from other peers are skipped with a warning. When
+    several peers hold the token, the one that alone answers is the server (kept for later
+    queries and `watch`); a world two holders answer for is refused. With a `Sender`, the
+    query says who sent it."""
     import zenoh
     known = None
+    among = {}
     extra = {"source_info": sender.source_info()} if sender is not None else {}
     for reply in session.get(key, payload=payload, timeout=timeout,
                              consolidation=zenoh.ConsolidationMode.NONE, **extra):
         zid = str(reply.replier_id.zid) if reply.replier_id is not None else None
         if known is None or zid not in known:
             known = servers(session, world, timeout)
-            if len(known) > 1:
-                raise RuntimeError(f"world {world!r} is claimed by {len(known)} peers holding its "
-                                   f"liveliness token ({', '.join(known)}): refusing their replies")
-        if zid is not None and zid in known:
-            yield reply
-        else:
+        if zid is None or zid not in known:
             print(f"ignored a reply on {key} from {zid or 'an unknown peer'}, which does not "
                   f"hold the world's token", file=sys.stderr)
+        elif len(known) == 1 or _pinned.get(world) == zid:
+            yield reply
+        elif _pinned.get(world) not in known:
+            among.setdefault(zid, []).append(reply)
+    if len(among) == 1:
+        (zid, replies), = among.items()
+        print(f"world {world!r}: {len(known)} peers hold its token, only {zid} answers: "
+              f"taken as the server", file=sys.stderr)
+        _pinned[world] = zid
+        yield from replies
+    elif len(among) > 1:
+        raise RuntimeError(f"world {world!r} is claimed by {len(known)} peers holding its "
+                           f"liveliness token ({', '.join(known)}): refusing their replies")
 
 
 def request(session, world, command, timeout, attempts=3, sender=None):
@@ -314,7 +330,7 @@ def watch(session, world, frames, seconds, timeout):
         zid = str(source.source_id.zid) if source is not None else None
         if zid is not None and zid not in known and time.monotonic() - refreshed >= 1.0:
             known, refreshed = servers(session, world, timeout), time.monotonic()
-        if zid is None or zid not in known or len(known) != 1:
+        if zid is None or zid not in known or (len(known) != 1 and _pinned.get(world) != zid):
             ignored += 1
             if ignored & (ignored - 1) == 0:
                 print(f"ignored {ignored} frame(s) from peers that are not the world's server",

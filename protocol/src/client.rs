@@ -3,9 +3,10 @@
 //!
 //! Replies are taken only from the world's server: the zenoh instance whose id the world's
 //! liveliness token `ricochet/<world>/alive/<zid>` names. A reply from any other peer (a
-//! stray or hostile queryable on the world's keys) is ignored and counted; a world whose
-//! token more than one peer holds is refused, since the client cannot tell which is the
-//! server. The id a reply carries is the one its sender's zenoh session declares, so on an
+//! stray or hostile queryable on the world's keys) is ignored and counted. When more than
+//! one peer holds the token, the holder that alone answers is taken as the server (the
+//! others hold spare tokens; frames are then taken from it too), and a world two holders
+//! answer for is refused, since the client cannot tell which is the server. The id a reply carries is the one its sender's zenoh session declares, so on an
 //! open network this guards against mistakes and naive impostors; against a peer that
 //! forges its id, the secured deployment (docs/security.md) is what holds, where only the
 //! server's credentials may declare the token and the queryables.
@@ -48,21 +49,60 @@ struct Trust {
     servers: Mutex<Vec<String>>,
     /// When a stream last read the holders again (at most once a [`Trust::REFRESH`]).
     refreshed: Mutex<Option<Instant>>,
+    /// Among several holders, the one that alone answered a request: the server, the
+    /// others holding spare tokens without serving the world.
+    pinned: Mutex<Option<String>>,
+}
+
+/// A reply's payload: `Ok` for a reply, `Err` for an error reply.
+type Answered = Result<Vec<u8>, Vec<u8>>;
+
+/// Who a replier is to the world, as far as the client knows.
+enum Holder {
+    /// The world's server: the only holder of its token, or the holder that alone
+    /// answered among several.
+    Server,
+    /// Not a holder of the world's token.
+    Other,
+    /// One of several holders, none yet told apart.
+    Among(Vec<String>),
 }
 
 impl Trust {
     /// How often an unknown source may make a stream read the token's holders again.
     const REFRESH: Duration = Duration::from_secs(1);
 
+    /// What `zid` is among `holders`, given the holder pinned as the server if any.
+    fn judge(&self, zid: &str, holders: &[String]) -> Holder {
+        if !holders.iter().any(|s| s == zid) {
+            return Holder::Other;
+        }
+        if holders.len() == 1 {
+            return Holder::Server;
+        }
+        let pinned = self.pinned.lock().unwrap_or_else(|e| e.into_inner());
+        match pinned.as_deref() {
+            Some(p) if holders.iter().any(|s| s == p) => {
+                if p == zid {
+                    Holder::Server
+                } else {
+                    Holder::Other
+                }
+            }
+            _ => Holder::Among(holders.to_vec()),
+        }
+    }
+
     /// Whether `zid` holds the world's token, and alone; an unknown `zid` rereads the
     /// holders, at most once a [`Trust::REFRESH`].
     fn holds_alone(&self, zid: &str) -> bool {
         let known = {
             let servers = self.servers.lock().unwrap_or_else(|e| e.into_inner());
-            servers
-                .iter()
-                .any(|s| s == zid)
-                .then_some(servers.len() == 1)
+            match self.judge(zid, &servers) {
+                Holder::Server => Some(true),
+                Holder::Among(_) => Some(false),
+                Holder::Other => None,
+            }
         };
         if let Some(alone) = known {
             return alone;
@@ -78,7 +118,7 @@ impl Trust {
             return false;
         };
         let holders: Vec<String> = tokens.into_iter().map(|(_, z)| z).collect();
-        let alone = holders.len() == 1 && holders[0] == zid;
+        let alone = matches!(self.judge(zid, &holders), Holder::Server);
         *self.servers.lock().unwrap_or_else(|e| e.into_inner()) = holders;
         alone
     }
@@ -167,6 +207,7 @@ impl Client {
             alive: keys.alive_tokens(),
             servers: Mutex::new(Vec::new()),
             refreshed: Mutex::new(None),
+            pinned: Mutex::new(None),
         });
         Ok(Client {
             session,
@@ -264,19 +305,15 @@ impl Client {
         Ok(tokens.into_iter().map(|(_, zid)| zid).collect())
     }
 
-    /// Whether `zid` holds the world's token, and alone: read from the last list of
-    /// holders, refreshed once (`refreshed`) when `zid` is not on it.
-    fn is_server(&self, zid: &str, refreshed: &mut bool, timeout: Duration) -> Result<bool> {
+    /// What `zid` is to the world: read from the last list of holders, refreshed once
+    /// (`refreshed`) when `zid` is not on it.
+    fn holder(&self, zid: &str, refreshed: &mut bool, timeout: Duration) -> Result<Holder> {
         let mut servers = self.trust.servers.lock().unwrap_or_else(|e| e.into_inner());
         if !servers.iter().any(|s| s == zid) && !*refreshed {
             *refreshed = true;
             *servers = self.servers(timeout)?;
         }
-        if servers.len() > 1 {
-            let claimed = std::mem::take(&mut *servers);
-            return Err(anyhow!(claimed_twice(&self.keys.world, &claimed)));
-        }
-        Ok(servers.first().is_some_and(|s| s == zid))
+        Ok(self.trust.judge(zid, &servers))
     }
 
     /// Queries `key` (with `payload`) and waits for the first reply from the world's
@@ -287,7 +324,7 @@ impl Client {
         key: &str,
         payload: Option<Vec<u8>>,
         timeout: Duration,
-    ) -> Result<Result<Vec<u8>, Vec<u8>>> {
+    ) -> Result<Answered> {
         // Every reply, unconsolidated: consolidation keeps one reply per key, which could be
         // an impostor's.
         let ask = || {
@@ -304,6 +341,11 @@ impl Client {
         };
         let deadline = Instant::now() + timeout + Duration::from_millis(500);
         let mut ignored = 0usize;
+        // Replies from holders of the world's token when several hold it: the one that
+        // alone answers is the server (the others hold spare tokens); two that answer
+        // cannot be told apart.
+        let mut among: Vec<(String, Answered)> = Vec::new();
+        let mut claimed: Vec<String> = Vec::new();
         let mut refreshed = false;
         let mut backoff = Duration::from_millis(50);
         'asking: loop {
@@ -315,12 +357,21 @@ impl Client {
                     Ok(Some(reply)) => {
                         heard = true;
                         let from = reply.replier_id().map(|id| id.zid().to_string());
-                        match from {
-                            Some(zid) if self.is_server(&zid, &mut refreshed, timeout)? => {
-                                return Ok(match reply.result() {
-                                    Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
-                                    Err(err) => Err(err.payload().to_bytes().into_owned()),
-                                });
+                        let result = || match reply.result() {
+                            Ok(sample) => Ok(sample.payload().to_bytes().into_owned()),
+                            Err(err) => Err(err.payload().to_bytes().into_owned()),
+                        };
+                        let holder = match &from {
+                            Some(zid) => self.holder(zid, &mut refreshed, timeout)?,
+                            None => Holder::Other,
+                        };
+                        match (holder, from.clone()) {
+                            (Holder::Server, _) => return Ok(result()),
+                            (Holder::Among(holders), Some(zid)) => {
+                                claimed = holders;
+                                if !among.iter().any(|(z, _)| *z == zid) {
+                                    among.push((zid, result()));
+                                }
                             }
                             _ => {
                                 ignored += 1;
@@ -334,6 +385,8 @@ impl Client {
                     }
                     // The deadline passed.
                     Ok(None) => break 'asking,
+                    // Every replier is done, and holders of several tokens answered.
+                    Err(_) if !among.is_empty() => break 'asking,
                     // Every replier is done. With no reply at all, nobody took the query (a
                     // queryable not yet known along the route, a server restarting): ask
                     // again, backing off, while the time lasts. A request carries its id,
@@ -348,6 +401,20 @@ impl Client {
                     }
                 }
             }
+        }
+        match among.len() {
+            0 => {}
+            1 => {
+                let (zid, result) = among.pop().expect("one");
+                tracing::info!(
+                    server = %zid,
+                    holders = claimed.len(),
+                    "the world's token is held by several peers; only this one answers: taken as the server"
+                );
+                *self.trust.pinned.lock().unwrap_or_else(|e| e.into_inner()) = Some(zid);
+                return Ok(result);
+            }
+            _ => return Err(anyhow!(claimed_twice(&self.keys.world, &claimed))),
         }
         let ignored = match ignored {
             0 => String::new(),
