@@ -1,0 +1,253 @@
+//! The journal: every accepted command, with the frame it took effect in, so a server
+//! killed at any moment can be resumed bit for bit (`run --journal FILE`, then
+//! `run --resume FILE`).
+//!
+//! A journal is JSON Lines. The first line is the header: the world's name, its scene
+//! (name and full text), the `[world]` overrides and the limits it ran under. Then, in the
+//! order they happened:
+//!
+//! - `{"frame": F, "apply": {...}}`: a command about to be applied at the boundary after
+//!   frame F (with `sender` and `id` when it had an id), written *before* it runs: a
+//!   command whose line cannot be written is refused, never applied unjournaled;
+//! - `{"frame": F, "load": {"name": ..., "text": ...}}`: a `load`, with the scene's text
+//!   read before it runs, so a resume needs no file the server read;
+//! - `{"replied": {...}}`: the reply of the command on the line before, when it had an id
+//!   (a retry after a resume gets the same answer; a resume recomputes every reply, and
+//!   this one is what the client was told);
+//! - `{"at": F}`: frame F was stepped (and published).
+//!
+//! Journals of version 2 wrote a command once it ran, with its reply (`{"frame": F,
+//! "command": {...}, "reply": {...}}` and `{"frame": F, "scene": ..., "reply": ...}`): they
+//! still resume.
+//!
+//! Each line ends with a tab and the CRC-32 of the text before it (8 hexadecimal digits): a
+//! line changed or damaged after it was written is refused on resume, naming it, instead
+//! of resuming silently into another world (JSON text never holds a raw tab). Journals of
+//! version 1 have no checksums and still resume.
+//!
+//! Each line is flushed to the operating system as it is written: a killed process loses
+//! nothing written (a machine that loses power may lose what the OS had not yet stored).
+//! A resume replays the lines in order: the same scene, commands and steps give the same
+//! world, bit for bit, since the engine is deterministic; the resumed server then appends
+//! to the same journal.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use ricochet_protocol::command::{Command, Reply};
+use serde::{Deserialize, Serialize};
+
+use super::hosted::Hosted;
+use super::inbox::Sender;
+use super::HostOptions;
+
+/// The journal's format version: 3 writes a command before it runs, 2 once it ran; both
+/// have a checksum on every line, 1 none.
+pub const VERSION: u32 = 3;
+
+/// A journal line as written: its text, a tab and the text's CRC-32.
+fn signed(text: &str) -> String {
+    format!("{text}\t{:08x}", crc32fast::hash(text.as_bytes()))
+}
+
+/// The text of a journal line: without its checksum, if it has one that matches; as it
+/// is, if it has none (version 1); `None` if its checksum does not match.
+pub fn text_of(line: &str) -> Option<&str> {
+    if line.contains('\t') {
+        unsigned(line)
+    } else {
+        Some(line)
+    }
+}
+
+/// The text of a signed line, if its checksum matches.
+fn unsigned(line: &str) -> Option<&str> {
+    let (text, sum) = line.rsplit_once('\t')?;
+    (sum.len() == 8 && u32::from_str_radix(sum, 16).ok()? == crc32fast::hash(text.as_bytes()))
+        .then_some(text)
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Header {
+    journal: u32,
+    world: String,
+    scene: SceneText,
+    overrides: Vec<String>,
+    /// The limits as TOML (which, unlike JSON, spells an infinite work limit).
+    limits: String,
+    /// Why the overrides include a setting picked for an accuracy target (what `info`
+    /// reports), when one was.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    accuracy: Option<String>,
+}
+
+#[derive(Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneText {
+    name: PathBuf,
+    text: String,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(untagged)]
+enum Line {
+    At {
+        at: u64,
+    },
+    Command {
+        frame: u64,
+        command: Command,
+        reply: Reply,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Scene {
+        frame: u64,
+        scene: SceneText,
+        reply: Reply,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Apply {
+        frame: u64,
+        apply: Command,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Load {
+        frame: u64,
+        load: SceneText,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        sender: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        id: Option<String>,
+    },
+    Replied {
+        replied: Reply,
+    },
+}
+
+/// What a command is about to do, as the journal writes it before it runs.
+pub enum Intent<'a> {
+    /// Any command but a `load`.
+    Apply(&'a Command),
+    /// A `load`, with the scene's text as read.
+    Load { name: &'a Path, text: &'a str },
+}
+
+/// An open journal, appended to.
+pub struct Journal {
+    out: BufWriter<File>,
+    path: PathBuf,
+}
+
+impl Journal {
+    /// Starts a journal at `path` (replacing any file there) for `host`'s world.
+    pub fn create(path: &Path, world: &str, host: &Hosted, opts: &HostOptions) -> Result<Journal> {
+        let file = File::create(path)
+            .with_context(|| format!("cannot create the journal {}", path.display()))?;
+        let mut journal = Journal {
+            out: BufWriter::new(file),
+            path: path.to_path_buf(),
+        };
+        let header = Header {
+            journal: VERSION,
+            world: world.to_string(),
+            scene: SceneText {
+                name: host.scene_name.clone(),
+                text: host.scene_text.clone(),
+            },
+            overrides: opts.overrides.clone(),
+            limits: toml::to_string(&opts.limits).expect("limits serialise"),
+            accuracy: host.accuracy.clone(),
+        };
+        journal.write(&serde_json::to_string(&header).expect("headers serialise"))?;
+        Ok(journal)
+    }
+
+    fn write(&mut self, line: &str) -> Result<()> {
+        writeln!(self.out, "{}", signed(line))
+            .and_then(|()| self.out.flush())
+            .with_context(|| format!("cannot write the journal {}", self.path.display()))
+    }
+
+    fn line(&mut self, line: &Line) {
+        let text = serde_json::to_string(line).expect("journal lines serialise");
+        if let Err(e) = self.write(&text) {
+            tracing::error!("{e:#}");
+        }
+    }
+
+    /// Frame `frame` was stepped.
+    pub fn stepped(&mut self, frame: u64) {
+        self.line(&Line::At { at: frame });
+    }
+
+    /// Writes what a command is about to do, before it runs: an error means the line
+    /// was not written, and the command must not run.
+    pub fn before(
+        &mut self,
+        intent: Intent<'_>,
+        frame: u64,
+        sender: &Sender,
+        id: &Option<String>,
+    ) -> Result<()> {
+        let (sender, id) = (sender.clone(), id.clone());
+        let line = match intent {
+            Intent::Apply(command) => Line::Apply {
+                frame,
+                apply: command.clone(),
+                sender,
+                id,
+            },
+            Intent::Load { name, text } => Line::Load {
+                frame,
+                load: SceneText {
+                    name: name.to_path_buf(),
+                    text: text.to_string(),
+                },
+                sender,
+                id,
+            },
+        };
+        self.write(&serde_json::to_string(&line).expect("journal lines serialise"))
+    }
+
+    /// A journal every write to fails, as on a full disk: `/dev/full`.
+    #[cfg(test)]
+    pub(super) fn full() -> Journal {
+        let path = PathBuf::from("/dev/full");
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .expect("/dev/full");
+        Journal {
+            out: BufWriter::new(file),
+            path,
+        }
+    }
+
+    /// The reply of the command [`Journal::before`] wrote last, if it had an id.
+    pub fn replied(&mut self, reply: &Reply) {
+        if reply.id.is_some() {
+            self.line(&Line::Replied {
+                replied: reply.clone(),
+            });
+        }
+    }
+}
+
+mod resume;
+pub use resume::{resume, Resumed};
+
+#[cfg(test)]
+mod tests;

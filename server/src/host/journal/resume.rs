@@ -1,0 +1,351 @@
+//! Reading a journal back: a world rebuilt to its last journaled frame, the answers of its
+//! last seconds, and the journal opened to go on appending.
+
+use std::collections::VecDeque;
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Context, Result};
+use ricochet_engine::world::Limits;
+
+use super::super::answered::{Answer, Answered, REMEMBER_FOR};
+use super::super::hosted::{Handled, Hosted};
+use super::super::inbox::Sender;
+use super::super::HostOptions;
+use super::{unsigned, Header, Journal, Line, VERSION};
+
+/// A world rebuilt from its journal.
+pub struct Resumed {
+    pub world: String,
+    pub host: Hosted,
+    pub answered: Answered,
+    pub journal: Journal,
+    /// The options the journal's header set (scene, overrides, limits).
+    pub opts: HostOptions,
+}
+
+/// Reads a journal a line at a time (a journal may hold hours of commands, and only the
+/// world it builds is kept), numbering lines and counting the bytes of whole lines.
+struct Lines<R> {
+    reader: R,
+    /// The line's bytes as read (a torn line may end inside a character).
+    bytes: Vec<u8>,
+    /// Lines read, counting the first line read as `first`.
+    n: usize,
+    /// Bytes of the whole lines read.
+    whole: u64,
+    /// Whether every line carries a checksum (journals of version 2 on); else only those
+    /// that have one are checked.
+    signed: bool,
+    /// Whether the last line read had a checksum (that matched).
+    had_sum: bool,
+}
+
+impl<R: BufRead> Lines<R> {
+    fn new(reader: R, first: usize) -> Self {
+        Lines {
+            reader,
+            bytes: Vec::new(),
+            n: first - 1,
+            whole: 0,
+            signed: true,
+            had_sum: false,
+        }
+    }
+
+    /// The next line, without its newline, and its number; `None` at the end, and for a
+    /// last line the kill cut short (no newline: it was never flushed whole, so nothing it
+    /// held was answered).
+    ///
+    /// The bytes are read before they are taken as text, so a line torn inside a
+    /// character is torn, like any other; a whole line that is not UTF-8 is refused,
+    /// naming it.
+    fn next(&mut self, path: &Path) -> Result<Option<(usize, &str)>> {
+        self.bytes.clear();
+        let got = self
+            .reader
+            .read_until(b'\n', &mut self.bytes)
+            .with_context(|| format!("cannot read the journal {}", path.display()))?;
+        if got == 0 || self.bytes.last() != Some(&b'\n') {
+            return Ok(None);
+        }
+        self.n += 1;
+        self.whole += got as u64;
+        self.bytes.pop();
+        let line = std::str::from_utf8(&self.bytes)
+            .map_err(|_| anyhow!("journal {} line {}: not UTF-8 text", path.display(), self.n))?;
+        // A journal of version 1 has lines without checksums, and those a resumed server
+        // appended with them.
+        self.had_sum = line.contains('\t');
+        if !self.signed && !self.had_sum {
+            return Ok(Some((self.n, line)));
+        }
+        let text = unsigned(line).ok_or_else(|| {
+            anyhow!(
+                "journal {} line {}: its checksum does not match (the line was changed or damaged after it was written)",
+                path.display(),
+                self.n
+            )
+        })?;
+        Ok(Some((self.n, text)))
+    }
+}
+
+/// Rebuilds the world `path` journals, to its last journaled frame, and opens the journal
+/// to go on appending. `opts` gives what the journal does not (network, rates, ...).
+///
+/// Two passes: the first rebuilds the world; the second reads again only the last
+/// [`REMEMBER_FOR`] of frames and remembers their answered ids, as old as they were when
+/// the server stopped (an id older than that would be forgotten by now). The answers are
+/// made after the world, so when they are forgotten their memory goes back whole, not as
+/// holes between the world's.
+pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
+    let open =
+        || File::open(path).with_context(|| format!("cannot open the journal {}", path.display()));
+    let at = |n: usize| format!("journal {} line {n}", path.display());
+    let mut lines = Lines::new(BufReader::new(open()?), 1);
+    // The header says whether the lines carry checksums: it is read as it is (checked
+    // against its own checksum if it has one).
+    lines.signed = false;
+    let Some((_, raw)) = lines.next(path)? else {
+        bail!("{}: empty, or its header cut short", at(1));
+    };
+    let raw = raw.to_string();
+    let signed = lines.had_sum;
+    let header: Header =
+        serde_json::from_str(&raw).with_context(|| format!("{}: not a journal header", at(1)))?;
+    match (header.journal, signed) {
+        (VERSION | 2, true) | (1, false) => {}
+        (v @ (2 | VERSION), false) => {
+            bail!("{}: a version {v} header without its checksum", at(1))
+        }
+        (v, _) => bail!(
+            "{}: journal version {v} (this server reads 1 to {VERSION})",
+            at(1)
+        ),
+    }
+    lines.signed = signed;
+    let limits: Limits =
+        toml::from_str(&header.limits).with_context(|| format!("{}: limits", at(1)))?;
+    // A journal is a file like any other: its limits are checked as an operator's, and
+    // never raise this server's own (`--limit`).
+    limits
+        .validate()
+        .with_context(|| format!("{}: limits", at(1)))?;
+    if let Some((name, theirs, ours)) = limits.above(&opts.limits) {
+        bail!(
+            "{}: the journal's limit {name} = {theirs} is above this server's {ours}; resume with --limit {name}={theirs} to allow it",
+            at(1)
+        );
+    }
+    let mut opts = opts.clone();
+    opts.overrides = header.overrides.clone();
+    opts.limits = limits;
+    opts.scene = Some(header.scene.name.clone());
+    opts.world = header.world.clone();
+    let mut host = Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
+        .with_context(|| format!("{}: the journal's scene", at(1)))?;
+    host.accuracy = header.accuracy.clone();
+    // Where the lines of a frame start (byte offset, line number), about once a second of
+    // frames, only as far back as the window of remembered ids: the second pass starts at
+    // the last mark before the window.
+    let dt = host.world.config.dt;
+    let window = (REMEMBER_FOR.as_secs_f64() / dt).ceil() as u64;
+    let mark_every = ((1.0 / dt).round() as u64).max(1);
+    let mut marks: VecDeque<(u64, u64, usize)> =
+        VecDeque::with_capacity((window / mark_every + 3) as usize);
+    // The `step`s with ids whose steps had not all run (line, due at step): answered when
+    // they have.
+    let mut running: Vec<(usize, u64)> = Vec::new();
+    // The answers of the commands with ids written before they ran (version 3), as the
+    // replay recomputes them, for the last window of frames: (frame, sender, id, answer).
+    let mut recent: VecDeque<(u64, Sender, String, Answer)> = VecDeque::new();
+    while let Some((n, raw)) = lines.next(path)? {
+        let line: Line = serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
+        match line {
+            Line::At { at: frame } => {
+                host.advance();
+                if host.world.frame() != frame {
+                    bail!(
+                        "{}: frame {frame} stepped, but the rebuilt world is at frame {}",
+                        at(n),
+                        host.world.frame()
+                    );
+                }
+                running.retain(|&(_, due)| due > host.steps_run);
+                if frame % mark_every == 0 {
+                    // The lines after this one act at this frame's boundary or later.
+                    while marks.len() >= 2 && marks[1].0 + window <= frame {
+                        marks.pop_front();
+                    }
+                    if marks.len() == marks.capacity() {
+                        marks.pop_front();
+                    }
+                    marks.push_back((frame, lines.whole, n + 1));
+                }
+            }
+            Line::Command {
+                frame,
+                command,
+                reply,
+                id,
+                ..
+            } => {
+                if reply.ok {
+                    check_frame(&host, frame, &at(n))?;
+                    let handled = host.handle(&command);
+                    if !handled.reply.ok {
+                        bail!(
+                            "{}: applied when journaled, refused now: {}",
+                            at(n),
+                            handled.reply.error.unwrap_or_default()
+                        );
+                    }
+                    if id.is_some() && handled.due_at_step > host.steps_run {
+                        running.push((n, handled.due_at_step));
+                    }
+                }
+            }
+            Line::Scene { frame, scene, .. } => {
+                check_frame(&host, frame, &at(n))?;
+                host.adopt_scene(scene.text, scene.name)
+                    .map_err(|e| anyhow!("{}: the loaded scene: {e}", at(n)))?;
+            }
+            // Written before it ran: replayed as it ran then, refused or not.
+            Line::Apply {
+                frame,
+                apply,
+                sender,
+                id,
+            } => {
+                check_frame(&host, frame, &at(n))?;
+                let handled = host.handle(&apply);
+                keep_answer(&mut recent, frame, sender, id, handled, window);
+            }
+            Line::Load {
+                frame,
+                load,
+                sender,
+                id,
+            } => {
+                check_frame(&host, frame, &at(n))?;
+                let handled = host.handle_scene(load.text, load.name);
+                keep_answer(&mut recent, frame, sender, id, handled, window);
+            }
+            Line::Replied { .. } => {}
+        }
+    }
+    let whole = lines.whole;
+    drop(lines);
+
+    // The second pass: the answers of the window.
+    let last = host.world.frame();
+    let (from, below, first) = match marks.front() {
+        Some(&(frame, offset, n)) if frame + window <= last => (frame, offset, n),
+        _ => (0, 0, 1),
+    };
+    let mut file = open()?;
+    file.seek(SeekFrom::Start(below))?;
+    let mut lines = Lines::new(BufReader::new(file).take(whole - below), first);
+    lines.signed = signed;
+    if below == 0 {
+        lines.next(path)?; // the header
+    }
+    let now = Instant::now();
+    let mut answered = Answered::default();
+    while let Some((n, raw)) = lines.next(path)? {
+        let (frame, reply, sender, id, due_at_step) =
+            match serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))? {
+                Line::Command {
+                    frame,
+                    reply,
+                    sender,
+                    id: Some(id),
+                    ..
+                } => {
+                    // A `step` still running when the server stopped is answered once its steps
+                    // have run.
+                    let due = running
+                        .iter()
+                        .find(|&&(line, _)| line == n)
+                        .map_or(0, |&(_, due)| due);
+                    (frame, reply, sender, id, due)
+                }
+                Line::Scene {
+                    frame,
+                    reply,
+                    sender,
+                    id: Some(id),
+                    ..
+                } => (frame, reply, sender, id, 0),
+                _ => continue,
+            };
+        if frame < from {
+            continue;
+        }
+        let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
+        answered.remember_at(
+            sender,
+            id,
+            Answer::new(&reply, due_at_step),
+            now.checked_sub(age).unwrap_or(now),
+        );
+    }
+    for (frame, sender, id, answer) in recent.into_iter().filter(|r| r.0 + window > last) {
+        let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
+        answered.remember_at(sender, id, answer, now.checked_sub(age).unwrap_or(now));
+    }
+    // What the server counts from here is what it does live, not the replay.
+    host.health = Default::default();
+    // Go on appending, after a line cut short if there is one.
+    let file = OpenOptions::new()
+        .append(true)
+        .open(path)
+        .with_context(|| format!("cannot append to the journal {}", path.display()))?;
+    // A line cut short is garbage in the middle of the journal once more is appended: cut
+    // it off.
+    if file.metadata()?.len() > whole {
+        file.set_len(whole)?;
+    }
+    Ok(Resumed {
+        world: header.world,
+        host,
+        answered,
+        journal: Journal {
+            out: BufWriter::new(file),
+            path: path.to_path_buf(),
+        },
+        opts,
+    })
+}
+
+/// Keeps the answer of a replayed command with an id, and only the last `window` frames'.
+fn keep_answer(
+    recent: &mut VecDeque<(u64, Sender, String, Answer)>,
+    frame: u64,
+    sender: Sender,
+    id: Option<String>,
+    handled: Handled,
+    window: u64,
+) {
+    while recent.front().is_some_and(|r| r.0 + window <= frame) {
+        recent.pop_front();
+    }
+    if let Some(id) = id {
+        let mut reply = handled.reply;
+        reply.id = Some(id.clone());
+        recent.push_back((frame, sender, id, Answer::new(&reply, handled.due_at_step)));
+    }
+}
+
+fn check_frame(host: &Hosted, frame: u64, at: &str) -> Result<()> {
+    if host.world.frame() != frame {
+        bail!(
+            "{at}: a command of frame {frame}, but the rebuilt world is at frame {}",
+            host.world.frame()
+        );
+    }
+    Ok(())
+}
