@@ -283,21 +283,7 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
 
     // The impostor claims the world's token too: a client cannot tell the server apart
     // and says so.
-    let claim = impostor
-        .session()
-        .liveliness()
-        .declare_token(
-            impostor
-                .keys()
-                .alive_token(&impostor.session().zid().to_string()),
-        )
-        .wait()
-        .unwrap();
-    let began = Instant::now();
-    while client.servers(TIMEOUT).unwrap().len() < 2 {
-        assert!(began.elapsed() < TIMEOUT, "the second token never showed");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let claim = claim_token(&impostor, &client);
     let refused = Client::open(&both, "guarded")
         .unwrap()
         .request(&Command::World(Action::Deselect), TIMEOUT)
@@ -322,22 +308,8 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
     // The impostor stops answering and holds a spare token: the server, the one holder
     // that answers, is taken as the server, its frames too; the world is not refused.
     drop((rpc, info));
-    let _spare = impostor
-        .session()
-        .liveliness()
-        .declare_token(
-            impostor
-                .keys()
-                .alive_token(&impostor.session().zid().to_string()),
-        )
-        .wait()
-        .unwrap();
     let fresh = Client::open(&both, "guarded").unwrap();
-    let began = Instant::now();
-    while fresh.servers(TIMEOUT).unwrap().len() < 2 {
-        assert!(began.elapsed() < TIMEOUT, "the spare token never showed");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let _spare = claim_token(&impostor, &fresh);
     let reply = request(&fresh, Command::World(Action::Deselect));
     assert!(reply.ok && reply.ids.is_empty(), "{reply:?}");
     let frames = fresh.frames().unwrap();
@@ -352,6 +324,24 @@ fn replies_are_taken_only_from_the_peer_holding_the_worlds_token() {
             "no frame taken from the pinned server"
         );
     }
+}
+
+/// `claimer` declares the world's liveliness token under its own id, as a server does;
+/// returns the token once `client` sees two holders.
+fn claim_token(claimer: &Client, client: &Client) -> zenoh::liveliness::LivelinessToken {
+    let zid = claimer.session().zid().to_string();
+    let token = claimer
+        .session()
+        .liveliness()
+        .declare_token(claimer.keys().alive_token(&zid))
+        .wait()
+        .unwrap();
+    let began = Instant::now();
+    while client.servers(TIMEOUT).unwrap().len() < 2 {
+        assert!(began.elapsed() < TIMEOUT, "the second token never showed");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    token
 }
 
 /// A flood of snapshot queries from one session is answered at the sender's query rate
