@@ -18,7 +18,7 @@ pub enum Direction {
 }
 
 /// Which directions are held: a held key is a state, not a packet per frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Held {
     pub up: bool,
     pub down: bool,
@@ -48,7 +48,7 @@ impl Held {
 }
 
 /// What drives a body besides physics.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Behavior {
     #[default]
     None,

@@ -11,6 +11,7 @@
 
 use std::path::Path;
 
+use ricochet_engine::world::World;
 use sha2::{Digest, Sha256};
 
 const STEPS: u64 = 300;
@@ -172,6 +173,12 @@ fn hash_state(h: &mut Sha256, world: &ricochet_engine::world::World) {
 }
 
 fn digest(name: &str) -> String {
+    digest_restoring(name, &[])
+}
+
+/// The digest of a scene's run, the world replaced at the end of each frame of `restore_at`
+/// by what its checkpoint restores.
+fn digest_restoring(name: &str, restore_at: &[u64]) -> String {
     let path = scenes_dir().join(format!("{name}.toml"));
     let mut world = ricochet_engine::scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let inputs: Vec<(u64, ricochet_engine::action::Action)> = if DEMOS.contains(&name) {
@@ -190,6 +197,10 @@ fn digest(name: &str) -> String {
             let _ = world.apply(action);
         }
         world.step();
+        if restore_at.contains(&frame) {
+            let limits = world.limits().clone();
+            world = World::restore(&world.save(), limits).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
         hash_state(&mut h, &world);
     }
     h.finalize().iter().map(|b| format!("{b:02x}")).collect()
@@ -223,4 +234,63 @@ fn every_shipped_scene_steps_to_the_same_bits_as_before() {
         }
     }
     assert!(wrong.is_empty(), "dumps changed:\n{}", wrong.join("\n"));
+}
+
+/// A checkpoint holds everything a step reads: every shipped scene, restored from its
+/// checkpoint mid-run (the demos with a body selected and dragged, particles and an
+/// emitter alive, warm-started piles), steps on to the same bits as a run never
+/// interrupted.
+#[test]
+fn every_shipped_scene_steps_on_from_a_checkpoint_to_the_same_bits() {
+    let mut wrong = Vec::new();
+    for name in shipped_scenes() {
+        let got = digest_restoring(&name, &[0, 105, 200]);
+        match EXPECTED.iter().find(|(n, _)| *n == name) {
+            Some((_, want)) if *want == got => {}
+            Some((_, want)) => wrong.push(format!("{name}: {got}, expected {want}")),
+            None => {}
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "restored runs differ:\n{}",
+        wrong.join("\n")
+    );
+}
+
+/// Damaged or foreign bytes are refused, naming why; never a world.
+#[test]
+fn a_damaged_checkpoint_is_refused() {
+    let path = scenes_dir().join("stack-20.toml");
+    let mut world = ricochet_engine::scene::load(&path).expect("stack-20");
+    world.step_n(10);
+    let limits = world.limits().clone();
+    let bytes = world.save();
+    let mut flipped = bytes.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 1;
+    let err = |b: &[u8]| {
+        World::restore(b, limits.clone())
+            .expect_err("refused")
+            .to_string()
+    };
+    assert!(err(&flipped).contains("checksum"), "{}", err(&flipped));
+    assert!(err(&bytes[..5]).contains("magic"));
+    assert!(err(b"not a checkpoint at all").contains("magic"));
+    let mut later = bytes.clone();
+    later[3] = 99;
+    assert!(err(&later).contains("version 99"));
+    // Valid checksum over bytes that are not a world.
+    let mut junk = b"RCK\x01".to_vec();
+    junk.extend_from_slice(&crc32fast::hash(b"junk").to_le_bytes());
+    junk.extend_from_slice(b"junk");
+    assert!(err(&junk).contains("unreadable"));
+    // The operator's limits replace the saved ones.
+    let tight = ricochet_engine::world::Limits {
+        bodies: 5,
+        ..limits.clone()
+    };
+    let restored = World::restore(&bytes, tight.clone()).expect("restores");
+    assert_eq!(restored.limits(), &tight);
+    assert_eq!(restored.frame(), 10);
 }

@@ -9,7 +9,9 @@ use crate::geometry::Shape;
 pub type GroupId = u16;
 
 /// A stable handle to a body: it survives other bodies being removed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize, serde::Deserialize,
+)]
 pub struct BodyKey(pub u32);
 
 /// Everything needed to create a body. `BodyDef::default()` is the chapter's default
@@ -148,7 +150,7 @@ impl BodyDef {
 /// One body as the solver sees it: the hot data every pass streams through, nothing else.
 /// What only users and the demo read (the body's id and behaviour) lives apart, in
 /// [`crate::world::BodyInfo`], at the same index.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Body {
     pub pos: DVec2,
     pub vel: DVec2,
@@ -168,7 +170,7 @@ pub struct Body {
 }
 
 /// What a sleeping body keeps: during a step the solvers see it as static.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sleeper {
     /// Its inverse mass, restored after each step.
     pub inv_mass: f64,

@@ -171,7 +171,7 @@ impl Bias {
 
 /// Impulses of the last step, for warm starting, when pairs are not kept between steps
 /// (the all-pairs and sweep broad phases).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct ContactCache {
     impulses: KeyMap<(BodyKey, BodyKey), (DVec2, f64, f64)>,
 }
@@ -242,33 +242,43 @@ pub struct ImpulseReport {
 const UNSLOTTED: u32 = u32::MAX;
 
 /// Reusable buffers of the solver.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct SolverBuffers {
     /// The bodies the frame moves (first, in the order of `movers`), then the others its
     /// contacts touch: a static body no contact touches costs nothing.
+    #[serde(skip)]
     bodies: Vec<SolverBody>,
     /// Each world body's place in `bodies`, [`UNSLOTTED`] if none: set for the frame and
     /// reset after it.
+    #[serde(skip)]
     slot: Vec<u32>,
     /// The world bodies given a place this frame.
+    #[serde(skip)]
     slotted: Vec<u32>,
     /// Velocity each body gains per second (gravity).
+    #[serde(skip)]
     accel: Vec<DVec2>,
     /// The contacts by block, then the boundary's (see [`blocks`]).
+    #[serde(skip)]
     buckets: Vec<Vec<Contact>>,
     /// The helper threads of the passes, kept from frame to frame (see [`team`]).
+    #[serde(skip)]
     crew: team::Crew,
     /// Buckets of the runs of pairs after the first when contacts are found on several
     /// threads.
+    #[serde(skip)]
     found: Vec<Vec<Vec<Contact>>>,
     /// Each mover's block (see [`blocks::assign`]), the movers it was cut for, and the
     /// frames since: cut again when the movers change or every [`blocks::RECUT_FRAMES`].
     block_of: Vec<u16>,
     blocks_for: Vec<u32>,
     frames_since_cut: u32,
+    #[serde(skip)]
     places: Vec<DVec2>,
+    #[serde(skip)]
     cut_scratch: Vec<f64>,
     /// Bodies a contact pushed in the sub-step (exact flight only).
+    #[serde(skip)]
     pushed: Vec<bool>,
 }
 

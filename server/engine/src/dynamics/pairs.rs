@@ -23,7 +23,7 @@ use crate::geometry::grid::{Cells, Grid};
 use crate::geometry::Aabb;
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Pair {
     pub a: u32,
     pub b: u32,
@@ -48,7 +48,7 @@ impl Pair {
 /// Where a body sits in the grid: `None` when it is in no resolving interaction.
 type Place = Option<Cells>;
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 struct Fat {
     min: DVec2,
     max: DVec2,
@@ -61,7 +61,7 @@ struct Fat {
 const MAX_CELLS: i64 = 64;
 
 /// The persistent candidate pairs of every resolving interaction.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PairSet {
     /// The world layout revision the set was built for.
     revision: Option<u64>,

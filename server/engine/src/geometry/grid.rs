@@ -15,7 +15,7 @@ use glam::DVec2;
 pub type KeyMap<K, V> = rustc_hash::FxHashMap<K, V>;
 
 /// Where a slot sits in the grid.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Cells {
     /// In the cells `x0..=x1, y0..=y1`.
     Range(i64, i64, i64, i64),
@@ -24,7 +24,7 @@ pub enum Cells {
 }
 
 /// Square cells of side `cell`, each listing the slots whose boxes touch it.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     cell: f64,
     /// A box covering more cells than this is kept aside instead.

@@ -4,7 +4,7 @@ use glam::DVec2;
 
 /// The bound of a rigid body, centred on the body's position. Shapes never rotate:
 /// the chapter resolves collisions without angular impulses.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Shape {
     /// An axis-aligned rectangle, stored by its half extents.
     Rect { half: DVec2 },
@@ -58,7 +58,7 @@ impl Shape {
 }
 
 /// An axis-aligned bounding box, used to reject far pairs before exact detection.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Aabb {
     pub min: DVec2,
     pub max: DVec2,

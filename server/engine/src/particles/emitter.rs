@@ -8,7 +8,7 @@ use rand::Rng;
 pub const MIN_TO_EMIT: u32 = 5;
 
 /// An emitter at a point, releasing particles of one preset.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Emitter {
     pub pos: Vec2,
     /// Particles still to be released.

@@ -14,7 +14,7 @@ use serde::Deserialize;
 use super::system::ParticleDef;
 
 /// A number drawn from the world's generator: `base + Σ cᵢ · randᵢ`.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
 #[serde(untagged)]
 pub enum Sample {
     Constant(f32),
@@ -53,7 +53,7 @@ impl Sample {
 }
 
 /// A particle recipe. Positions are given when the preset is used.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ParticlePreset {
     pub life: Sample,
@@ -124,7 +124,7 @@ pub const BUILT_IN: &[(&str, &str)] =
     &[("fire", include_str!("../../../../assets/presets/fire.toml"))];
 
 /// Presets by name. A scene's own `[preset.NAME]` tables add to or replace the built-ins.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PresetLibrary {
     presets: BTreeMap<String, ParticlePreset>,
 }

@@ -115,7 +115,7 @@ impl ParticleDef {
 }
 
 /// All particles of a world, one array per field.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Particles {
     /// Stable ids, increasing in creation order (what the wire protocol tracks).
     pub id: Vec<u32>,

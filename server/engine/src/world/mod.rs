@@ -27,25 +27,27 @@ use crate::particles::{Emitter, Particles, PresetLibrary};
 
 mod actions;
 mod candidates;
+mod checkpoint;
 mod demo;
 mod limits;
 mod step;
 mod store;
 
+pub use checkpoint::{CheckpointError, CHECKPOINT_VERSION};
 pub use limits::{short, LimitError, Limits, REAL_TIME_STEP_WORK};
 
 /// Particle interactions with at least this many shapes bin them in a grid.
 pub const PARTICLE_GRID_MIN_SHAPES: usize = 8;
 
 /// One side of an interaction: a group of bodies or the particle system.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Side {
     Group(GroupId),
     Particles,
 }
 
 /// A declared interaction, tested every step in declaration order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Interaction {
     pub a: Side,
     pub b: Side,
@@ -57,7 +59,7 @@ pub struct Interaction {
 pub const PARTICLES: &str = "particles";
 
 /// A named group and its members (indices into the body array, in body order).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 struct Group {
     name: String,
     members: Vec<u32>,
@@ -66,7 +68,7 @@ struct Group {
 /// What users and the demo know a body by, read rarely: kept apart from the solver's
 /// [`Body`] (at the same index in [`World::infos`]) so the step streams through hot data
 /// only.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BodyInfo {
     /// The name reported in frames and dumps; unique in a world.
     pub id: String,
@@ -74,7 +76,7 @@ pub struct BodyInfo {
 }
 
 /// What one step did: the figures a frame reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StepStats {
     /// Rigid pair resolutions (or detections, in detect-only interactions).
     pub contacts: u64,
@@ -125,7 +127,9 @@ pub enum WorldError {
 }
 
 /// A simulated world.
-#[derive(Clone, Debug)]
+/// A checkpoint ([`World::save`]) holds every field but the scratch space the next step
+/// rebuilds.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct World {
     pub config: WorldConfig,
     /// What the world may hold and a step may cost.
@@ -146,15 +150,20 @@ pub struct World {
     stats: StepStats,
     statics_revision: u64,
     // Scratch space of the broad phase and the impulse solver, kept between steps.
+    #[serde(skip)]
     sweep: SweepBuffers,
     /// Per group: the layout revision it was last looked at for, and its static grid if
     /// it is all static and large.
+    #[serde(skip)]
     static_grids: Vec<(u64, Option<StaticGrid>)>,
     /// Changes whenever bodies are added or removed or a static body is moved.
     layout_revision: u64,
+    #[serde(skip)]
     pairs: Vec<(u32, u32)>,
+    #[serde(skip)]
     sweep_out: Vec<(u32, u32)>,
     /// Each moving body's place at the start of the step (kept only with sleeping on).
+    #[serde(skip)]
     step_start: Vec<(u32, glam::DVec2)>,
     /// Indices of the dynamic bodies, and of the bodies with a behaviour: what a step
     /// walks, so static bodies cost nothing unless something touches them.
@@ -166,6 +175,7 @@ pub struct World {
     /// The persistent pairs of the grid broad phase.
     pair_set: PairSet,
     /// Pairs handed to the impulse solver by the other broad phases.
+    #[serde(skip)]
     solver_pairs: Vec<Pair>,
     solver_buffers: SolverBuffers,
     /// Where each body is in `bodies`, by id and by key: O(1) handles, rebuilt when
