@@ -141,3 +141,113 @@ fn a_killed_server_resumes_from_its_journal_bit_for_bit() {
         );
     }
 }
+
+/// With a small bound the journal starts again from checkpoints of the world as the server
+/// runs; a server killed after several is resumed from its last checkpoint and the lines
+/// after it, to the killed server's frame bit for bit, and a retried request from before
+/// the checkpoint is still answered, not applied again.
+#[test]
+fn a_killed_server_resumes_from_its_last_checkpoint_bit_for_bit() {
+    let dir = temp_dir();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (journal, dump_a, dump_b) = (path("world.journal"), path("a.jsonl"), path("b.jsonl"));
+    let a = Server::start(
+        "emitters.toml",
+        "checkpointed",
+        &[
+            "--journal",
+            &journal,
+            "--dump",
+            &dump_a,
+            "--journal-bytes",
+            "4096",
+            "--checkpoint-after-ms",
+            "0.5",
+        ],
+    );
+    let client = a.client();
+    let retried = br#"{"do":"agitate","strength":30,"id":"before"}"#.to_vec();
+    let first = client.request_raw(retried.clone(), TIMEOUT).unwrap();
+    assert!(first.ok, "{first:?}");
+    for i in 0..6 {
+        let reply = request(
+            &client,
+            Command::World(Action::SpawnMinion {
+                at: [40.0 + 15.0 * i as f64, 80.0],
+                shape: None,
+            }),
+        );
+        assert!(reply.ok, "{reply:?}");
+        std::thread::sleep(Duration::from_millis(150));
+    }
+    let checkpoints = || {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .filter(|e| {
+                let name = e.as_ref().unwrap().file_name();
+                name.to_string_lossy().ends_with(".checkpoint")
+            })
+            .count()
+    };
+    let text = std::fs::read_to_string(&journal).unwrap();
+    assert!(
+        text.lines()
+            .nth(1)
+            .is_some_and(|l| l.contains("\"checkpoint\"")),
+        "the journal starts from a checkpoint: {}",
+        text.lines().take(2).collect::<Vec<_>>().join("\n")
+    );
+    // The one the journal names, and at most one being written.
+    assert!(
+        checkpoints() <= 2,
+        "the older checkpoints were removed: {}",
+        checkpoints()
+    );
+    assert!(
+        text.len() < 8192,
+        "the journal is bounded: {} bytes",
+        text.len()
+    );
+    let endpoint = a.endpoint.clone();
+    a.kill();
+
+    let text = std::fs::read_to_string(&journal).unwrap();
+    let last = text
+        .lines()
+        .rev()
+        .find_map(|l| {
+            let l = l.rsplit_once('\t').map_or(l, |(t, _)| t);
+            serde_json::from_str::<serde_json::Value>(l).ok()?["at"].as_u64()
+        })
+        .unwrap_or_else(|| {
+            // Killed right after a checkpoint: its frame.
+            let l = text.lines().nth(1).unwrap();
+            let l = l.rsplit_once('\t').unwrap().0;
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["checkpoint"]["frame"]
+                .as_u64()
+                .unwrap()
+        });
+    let killed = dump_lines(Path::new(&dump_a));
+    let _resumed = Server::launch_at(
+        &endpoint,
+        "checkpointed",
+        &["--resume", &journal, "--paused", "--dump", &dump_b],
+    );
+    let again = client.request_raw(retried, TIMEOUT).unwrap();
+    assert_eq!(
+        again, first,
+        "the retry after the resume got the first answer"
+    );
+    assert!(request(&client, Command::Server(ServerCommand::Step { n: 30 })).ok);
+    let resumed = dump_lines(Path::new(&dump_b));
+    assert_eq!(
+        resumed.keys().next(),
+        Some(&last),
+        "B starts at the last journaled frame"
+    );
+    assert_eq!(
+        resumed[&last], killed[&last],
+        "the resumed world is the killed one at frame {last}"
+    );
+    assert!(resumed.contains_key(&(last + 30)), "B stepped on");
+}

@@ -51,7 +51,8 @@ impl Answer {
     }
 }
 
-/// One remembered answer; its id and reply are in [`Answered::bytes`] from `start`.
+/// One remembered answer; its id, reply and sender are in [`Answered::bytes`] from
+/// `start`, in that order (the sender kept for checkpoints: [`Answered::export`]).
 struct Entry {
     key: Key,
     at: Instant,
@@ -60,6 +61,26 @@ struct Entry {
     start: u64,
     id_len: u32,
     reply_len: u32,
+    /// The sender's length; `None` for no sender.
+    sender_len: Option<u32>,
+}
+
+impl Entry {
+    fn len(&self) -> usize {
+        self.id_len as usize + self.reply_len as usize + self.sender_len.unwrap_or(0) as usize
+    }
+}
+
+/// A remembered answer as a checkpoint keeps it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Remembered {
+    pub sender: Sender,
+    pub id: String,
+    /// The reply as sent (JSON).
+    pub reply: String,
+    pub due_at_step: u64,
+    /// Seconds since it was given.
+    pub age: f64,
 }
 
 /// The remembered answers, first in first out, in three buffers: an index, the entries
@@ -143,9 +164,11 @@ impl Answered {
                 start: self.first_byte + self.bytes.len() as u64,
                 id_len: id.len() as u32,
                 reply_len: answer.reply.len() as u32,
+                sender_len: sender.as_ref().map(|s| s.len() as u32),
             });
             self.bytes.extend(id.as_bytes());
             self.bytes.extend(&answer.reply[..]);
+            self.bytes.extend(sender.iter().flat_map(|s| s.as_bytes()));
         }
         self.forget_at(now);
     }
@@ -167,7 +190,7 @@ impl Answered {
             {
                 break;
             }
-            let len = old.id_len as usize + old.reply_len as usize;
+            let len = old.len();
             if self.index.get(&old.key) == Some(&self.first) {
                 self.index.remove(&old.key);
             }
@@ -195,6 +218,28 @@ impl Answered {
         self.order.len()
     }
 
+    /// Every remembered answer, oldest first, with its age at `now`.
+    pub fn export(&self, now: Instant) -> Vec<Remembered> {
+        let text = |from: u64, len: u32| {
+            String::from_utf8_lossy(&self.bytes_of(from, len).copied().collect::<Vec<u8>>())
+                .into_owned()
+        };
+        self.order
+            .iter()
+            .map(|e| {
+                let reply_at = e.start + u64::from(e.id_len);
+                let sender_at = reply_at + u64::from(e.reply_len);
+                Remembered {
+                    sender: e.sender_len.map(|n| text(sender_at, n)),
+                    id: text(e.start, e.id_len),
+                    reply: text(reply_at, e.reply_len),
+                    due_at_step: e.due_at_step,
+                    age: now.saturating_duration_since(e.at).as_secs_f64(),
+                }
+            })
+            .collect()
+    }
+
     pub fn is_empty(&self) -> bool {
         self.order.is_empty()
     }
@@ -210,6 +255,45 @@ mod tests {
 
     fn frame(a: &Answer) -> u64 {
         serde_json::from_slice::<Reply>(&a.reply).unwrap().frame
+    }
+
+    #[test]
+    fn an_export_gives_back_every_answer_with_its_sender() {
+        let mut a = Answered::default();
+        let now = Instant::now();
+        a.remember_at(
+            Some("s1".into()),
+            "r1".into(),
+            answer(1),
+            now - Duration::from_secs(3),
+        );
+        a.remember_at(
+            None,
+            "r2".into(),
+            Answer::new(&Reply::refused(2, "y"), 7),
+            now,
+        );
+        let out = a.export(now);
+        assert_eq!(out.len(), 2);
+        assert_eq!(
+            (out[0].sender.as_deref(), out[0].id.as_str()),
+            (Some("s1"), "r1")
+        );
+        assert!((out[0].age - 3.0).abs() < 1e-6, "{}", out[0].age);
+        assert_eq!((out[1].sender.as_deref(), out[1].due_at_step), (None, 7));
+        let reply: Reply = serde_json::from_str(&out[1].reply).unwrap();
+        assert_eq!(reply.frame, 2);
+        // Remembered again elsewhere, each is found under its sender.
+        let mut b = Answered::default();
+        for r in out {
+            let answer = Answer {
+                reply: r.reply.into_bytes().into_boxed_slice(),
+                due_at_step: r.due_at_step,
+            };
+            b.remember_at(r.sender, r.id, answer, now);
+        }
+        assert_eq!(frame(&b.get(&Some("s1".into()), "r1").unwrap()), 1);
+        assert_eq!(b.get(&None, "r2").unwrap().due_at_step, 7);
     }
 
     #[test]

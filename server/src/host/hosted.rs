@@ -95,7 +95,18 @@ impl Hosted {
         let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)?;
         check_frame_bytes(&world, (0, 0, 0), opts.max_frame_bytes)
             .map_err(|e| anyhow::anyhow!("{}: {e}", scene_name.display()))?;
-        Ok(Hosted {
+        Ok(Self::with_world(world, scene_text, scene_name, opts))
+    }
+
+    /// Hosts `world`, made from the scene `scene_text` (named `scene_name`), as `opts` say
+    /// (a checkpoint's world, restored).
+    pub fn with_world(
+        world: World,
+        scene_text: String,
+        scene_name: PathBuf,
+        opts: &HostOptions,
+    ) -> Self {
+        Hosted {
             world,
             scene_text,
             scene_name,
@@ -116,7 +127,7 @@ impl Hosted {
             max_frame_bytes: opts.max_frame_bytes,
             health: Health::default(),
             accuracy: None,
-        })
+        }
     }
 
     fn replace_world(&mut self, world: World) {

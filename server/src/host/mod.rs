@@ -122,6 +122,8 @@ pub struct HostOptions {
     pub journal: Option<PathBuf>,
     /// Rebuild the world from this journal, then go on appending to it.
     pub resume: Option<PathBuf>,
+    /// When the journal starts again from a checkpoint of the world ([`journal`]).
+    pub checkpoints: journal::Checkpoints,
     /// Run the scene under the cheapest measured setting whose worst position error meets
     /// this (scene units); the scene's `[world] accuracy` if not given ([`crate::accuracy`]).
     pub accuracy: Option<f64>,
@@ -151,6 +153,7 @@ impl HostOptions {
             budget: BudgetLimits::default(),
             journal: None,
             resume: None,
+            checkpoints: Default::default(),
             accuracy: None,
             accuracy_cache: None,
         }
@@ -558,6 +561,14 @@ pub fn run(opts: HostOptions) -> Result<()> {
         }
         advance(&mut host, &mut publish, &mut journal);
         clock.stepped();
+        // The journal's bound: a checkpoint, once no `step` command is in flight (a resume
+        // finds its remaining steps in the journal's lines, never in a checkpoint).
+        if let Some(j) = journal.as_mut() {
+            j.poll(false);
+            if j.checkpoint_due() && host.pending_steps == 0 && deferred.is_empty() {
+                j.checkpoint(&host, &answered, &opts.world, &opts);
+            }
+        }
     }
 }
 
@@ -571,7 +582,7 @@ fn advance(
     host.advance();
     publish(host);
     if let Some(journal) = journal.as_mut() {
-        journal.stepped(host.world.frame());
+        journal.stepped(host.world.frame(), f64::from(host.last_step_ms));
     }
 }
 

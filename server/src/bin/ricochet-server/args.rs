@@ -9,6 +9,7 @@ use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::NetworkArgs;
 use ricochet_server::host::budget::BudgetLimits;
 use ricochet_server::host::inbox::InboxLimits;
+use ricochet_server::host::journal::Checkpoints;
 use ricochet_server::host::{HostOptions, DEFAULT_MAX_FRAME_BYTES};
 
 #[derive(Parser)]
@@ -128,6 +129,14 @@ pub struct RunArgs {
     /// overrides and limits; --scene, --world, --set and --limit are not needed.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
+    /// Bytes the journal may grow to before the host checkpoints the world beside it
+    /// (FILE.<frame>.checkpoint) and starts the journal again from there.
+    #[arg(long, default_value_t = Checkpoints::default().journal_bytes, value_name = "BYTES")]
+    pub journal_bytes: u64,
+    /// Milliseconds of stepping after which the host checkpoints the world: about what a
+    /// resume replays, whatever the run's length.
+    #[arg(long, default_value_t = Checkpoints::default().replay_ms, value_name = "MS")]
+    pub checkpoint_after_ms: f64,
 }
 
 #[derive(Subcommand)]
@@ -290,6 +299,18 @@ impl RunArgs {
                 bail!("{name} must be above 0 and at most 1, not {share}");
             }
         }
+        if !(self.checkpoint_after_ms.is_finite() && self.checkpoint_after_ms > 0.0) {
+            bail!(
+                "--checkpoint-after-ms {}: must be a number of milliseconds above 0",
+                self.checkpoint_after_ms
+            );
+        }
+        if self.journal_bytes < 4096 {
+            bail!(
+                "--journal-bytes {}: must be at least 4096",
+                self.journal_bytes
+            );
+        }
         if !(self.max_rate.is_finite() && self.max_rate > 0.0) {
             bail!(
                 "--max-rate {}: must be a number of steps per second above 0",
@@ -322,6 +343,10 @@ impl RunArgs {
             },
             journal: self.journal,
             resume: self.resume,
+            checkpoints: Checkpoints {
+                journal_bytes: self.journal_bytes,
+                replay_ms: self.checkpoint_after_ms,
+            },
             accuracy: self.how.accuracy,
             accuracy_cache: self.how.accuracy_cache,
         })

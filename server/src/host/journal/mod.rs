@@ -14,7 +14,12 @@
 //! - `{"replied": {...}}`: the reply of the command on the line before, when it had an id
 //!   (a retry after a resume gets the same answer; a resume recomputes every reply, and
 //!   this one is what the client was told);
-//! - `{"at": F}`: frame F was stepped (and published).
+//! - `{"at": F}`: frame F was stepped (and published);
+//! - `{"checkpoint": {"file": ..., "frame": F, "bytes": ..., "crc": ...}}`, right after the
+//!   header (version 4): the journal starts from this checkpoint of the world at frame F,
+//!   a file beside it ([`checkpoint`]); what follows happened after it. The host takes one
+//!   when the journal has grown past `--journal-bytes` or replaying it would take longer
+//!   than `--checkpoint-after-ms`.
 //!
 //! Journals of version 2 wrote a command once it ran, with its reply (`{"frame": F,
 //! "command": {...}, "reply": {...}}` and `{"frame": F, "scene": ..., "reply": ...}`): they
@@ -43,9 +48,9 @@ use super::hosted::Hosted;
 use super::inbox::Sender;
 use super::HostOptions;
 
-/// The journal's format version: 3 writes a command before it runs, 2 once it ran; both
-/// have a checksum on every line, 1 none.
-pub const VERSION: u32 = 3;
+/// The journal's format version: 4 may start from a checkpoint; 3 writes a command before
+/// it runs, 2 once it ran; all have a checksum on every line, 1 none.
+pub const VERSION: u32 = 4;
 
 /// A journal line as written: its text, a tab and the text's CRC-32.
 fn signed(text: &str) -> String {
@@ -82,6 +87,23 @@ struct Header {
     /// reports), when one was.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     accuracy: Option<String>,
+}
+
+impl Header {
+    /// The header of a journal of `host`'s world named `world`, run under `opts`.
+    fn of(world: &str, host: &Hosted, opts: &HostOptions) -> Header {
+        Header {
+            journal: VERSION,
+            world: world.to_string(),
+            scene: SceneText {
+                name: host.scene_name.clone(),
+                text: host.scene_text.clone(),
+            },
+            overrides: opts.overrides.clone(),
+            limits: toml::to_string(&opts.limits).expect("limits serialise"),
+            accuracy: host.accuracy.clone(),
+        }
+    }
 }
 
 #[derive(Clone, Serialize, Deserialize)]
@@ -134,6 +156,9 @@ enum Line {
     Replied {
         replied: Reply,
     },
+    Checkpoint {
+        checkpoint: CheckpointRef,
+    },
 }
 
 /// What a command is about to do, as the journal writes it before it runs.
@@ -148,6 +173,21 @@ pub enum Intent<'a> {
 pub struct Journal {
     out: BufWriter<File>,
     path: PathBuf,
+    /// When to take a checkpoint, and how far the journal has come since the last.
+    policy: Checkpoints,
+    since: Since,
+    /// The checkpoint the journal starts from (its file name), if any.
+    checkpoint: Option<String>,
+    /// A checkpoint being written.
+    pending: Option<checkpoint::Pending>,
+}
+
+/// How much the journal has grown since its last checkpoint (or its start).
+#[derive(Clone, Copy, Debug, Default)]
+struct Since {
+    bytes: u64,
+    /// Milliseconds the steps journaled took.
+    step_ms: f64,
 }
 
 impl Journal {
@@ -155,27 +195,37 @@ impl Journal {
     pub fn create(path: &Path, world: &str, host: &Hosted, opts: &HostOptions) -> Result<Journal> {
         let file = File::create(path)
             .with_context(|| format!("cannot create the journal {}", path.display()))?;
-        let mut journal = Journal {
-            out: BufWriter::new(file),
-            path: path.to_path_buf(),
-        };
-        let header = Header {
-            journal: VERSION,
-            world: world.to_string(),
-            scene: SceneText {
-                name: host.scene_name.clone(),
-                text: host.scene_text.clone(),
-            },
-            overrides: opts.overrides.clone(),
-            limits: toml::to_string(&opts.limits).expect("limits serialise"),
-            accuracy: host.accuracy.clone(),
-        };
+        let mut journal = Journal::appending(file, path, opts.checkpoints, None);
+        let header = Header::of(world, host, opts);
         journal.write(&serde_json::to_string(&header).expect("headers serialise"))?;
         Ok(journal)
     }
 
+    /// A journal appending to `file` (at `path`), starting from `checkpoint` if it names
+    /// one.
+    fn appending(
+        file: File,
+        path: &Path,
+        policy: Checkpoints,
+        checkpoint: Option<String>,
+    ) -> Journal {
+        Journal {
+            out: BufWriter::new(file),
+            path: path.to_path_buf(),
+            policy,
+            since: Since::default(),
+            checkpoint,
+            pending: None,
+        }
+    }
+
     fn write(&mut self, line: &str) -> Result<()> {
-        writeln!(self.out, "{}", signed(line))
+        let line = signed(line);
+        self.since.bytes += line.len() as u64 + 1;
+        if let Some(pending) = self.pending.as_mut() {
+            pending.lines.push(line.clone());
+        }
+        writeln!(self.out, "{line}")
             .and_then(|()| self.out.flush())
             .with_context(|| format!("cannot write the journal {}", self.path.display()))
     }
@@ -187,8 +237,9 @@ impl Journal {
         }
     }
 
-    /// Frame `frame` was stepped.
-    pub fn stepped(&mut self, frame: u64) {
+    /// Frame `frame` was stepped, in `step_ms` milliseconds (what its replay will take).
+    pub fn stepped(&mut self, frame: u64, step_ms: f64) {
+        self.since.step_ms += step_ms;
         self.line(&Line::At { at: frame });
     }
 
@@ -230,10 +281,7 @@ impl Journal {
             .write(true)
             .open(&path)
             .expect("/dev/full");
-        Journal {
-            out: BufWriter::new(file),
-            path,
-        }
+        Journal::appending(file, &path, Checkpoints::default(), None)
     }
 
     /// The reply of the command [`Journal::before`] wrote last, if it had an id.
@@ -246,7 +294,9 @@ impl Journal {
     }
 }
 
+mod checkpoint;
 mod resume;
+pub use checkpoint::{remove_strays, CheckpointRef, Checkpoints};
 pub use resume::{resume, Resumed};
 
 #[cfg(test)]

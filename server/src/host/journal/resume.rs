@@ -3,7 +3,7 @@
 
 use std::collections::VecDeque;
 use std::fs::{File, OpenOptions};
-use std::io::{BufRead, BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -14,7 +14,7 @@ use super::super::answered::{Answer, Answered, REMEMBER_FOR};
 use super::super::hosted::{Handled, Hosted};
 use super::super::inbox::Sender;
 use super::super::HostOptions;
-use super::{unsigned, Header, Journal, Line, VERSION};
+use super::{checkpoint, unsigned, Header, Journal, Line, VERSION};
 
 /// A world rebuilt from its journal.
 pub struct Resumed {
@@ -117,8 +117,8 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     let header: Header =
         serde_json::from_str(&raw).with_context(|| format!("{}: not a journal header", at(1)))?;
     match (header.journal, signed) {
-        (VERSION | 2, true) | (1, false) => {}
-        (v @ (2 | VERSION), false) => {
+        (2..=VERSION, true) | (1, false) => {}
+        (v @ 2..=VERSION, false) => {
             bail!("{}: a version {v} header without its checksum", at(1))
         }
         (v, _) => bail!(
@@ -145,9 +145,37 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     opts.limits = limits;
     opts.scene = Some(header.scene.name.clone());
     opts.world = header.world.clone();
-    let mut host = Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
-        .with_context(|| format!("{}: the journal's scene", at(1)))?;
-    host.accuracy = header.accuracy.clone();
+    let replay = Instant::now();
+    // A journal of version 4 may start from a checkpoint: its second line names it.
+    let second = lines.next(path)?.map(|(n, raw)| (n, raw.to_string()));
+    let reference = match &second {
+        Some((_, raw)) => match serde_json::from_str::<Line>(raw) {
+            Ok(Line::Checkpoint { checkpoint }) => Some(checkpoint),
+            _ => None,
+        },
+        None => None,
+    };
+    let (mut host, saved, checkpoint_file, mut pending) = match reference {
+        Some(reference) => {
+            if header.journal < 4 {
+                bail!(
+                    "{}: a checkpoint in a journal of version {}",
+                    at(2),
+                    header.journal
+                );
+            }
+            let restored = checkpoint::restore(path, &reference, &opts).with_context(|| at(2))?;
+            let saved = (restored.frame, restored.answers);
+            (restored.host, Some(saved), Some(reference.file), None)
+        }
+        None => {
+            let mut host =
+                Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
+                    .with_context(|| format!("{}: the journal's scene", at(1)))?;
+            host.accuracy = header.accuracy.clone();
+            (host, None, None, second)
+        }
+    };
     // Where the lines of a frame start (byte offset, line number), about once a second of
     // frames, only as far back as the window of remembered ids: the second pass starts at
     // the last mark before the window.
@@ -162,8 +190,15 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     // The answers of the commands with ids written before they ran (version 3), as the
     // replay recomputes them, for the last window of frames: (frame, sender, id, answer).
     let mut recent: VecDeque<(u64, Sender, String, Answer)> = VecDeque::new();
-    while let Some((n, raw)) = lines.next(path)? {
-        let line: Line = serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
+    loop {
+        let (n, raw) = match pending.take() {
+            Some(first) => first,
+            None => match lines.next(path)? {
+                Some((n, raw)) => (n, raw.to_string()),
+                None => break,
+            },
+        };
+        let line: Line = serde_json::from_str(&raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
         match line {
             Line::At { at: frame } => {
                 host.advance();
@@ -235,8 +270,15 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                 keep_answer(&mut recent, frame, sender, id, handled, window);
             }
             Line::Replied { .. } => {}
+            Line::Checkpoint { .. } => {
+                bail!(
+                    "{}: a checkpoint is named only right after the header",
+                    at(n)
+                )
+            }
         }
     }
+    let replay_ms = replay.elapsed().as_secs_f64() * 1e3;
     let whole = lines.whole;
     drop(lines);
 
@@ -255,6 +297,18 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     }
     let now = Instant::now();
     let mut answered = Answered::default();
+    // The answers the checkpoint kept come first: they are the oldest.
+    if let Some((frame, answers)) = saved {
+        let since = last.saturating_sub(frame) as f64 * dt;
+        for r in answers {
+            let age = Duration::from_secs_f64((r.age + since).max(0.0));
+            let answer = Answer {
+                reply: r.reply.into_bytes().into_boxed_slice(),
+                due_at_step: r.due_at_step,
+            };
+            answered.remember_at(r.sender, r.id, answer, now.checked_sub(age).unwrap_or(now));
+        }
+    }
     while let Some((n, raw)) = lines.next(path)? {
         let (frame, reply, sender, id, due_at_step) =
             match serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))? {
@@ -309,13 +363,16 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     if file.metadata()?.len() > whole {
         file.set_len(whole)?;
     }
+    checkpoint::remove_strays(path, checkpoint_file.as_deref());
     Ok(Resumed {
         world: header.world,
         host,
         answered,
-        journal: Journal {
-            out: BufWriter::new(file),
-            path: path.to_path_buf(),
+        journal: {
+            let mut journal = Journal::appending(file, path, opts.checkpoints, checkpoint_file);
+            journal.since.bytes = whole;
+            journal.since.step_ms = replay_ms;
+            journal
         },
         opts,
     })

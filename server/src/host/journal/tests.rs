@@ -23,7 +23,7 @@ fn journal_of(path: &Path, steps: usize) -> u64 {
     let mut journal = Journal::create(path, "journaled", &host, &opts).unwrap();
     for _ in 0..steps {
         host.step();
-        journal.stepped(host.world.frame());
+        journal.stepped(host.world.frame(), 0.0);
     }
     host.world.frame()
 }
@@ -184,7 +184,7 @@ fn a_journal_of_version_1_without_checksums_still_resumes() {
     assert_eq!(resumed.host.world.frame(), frame);
     // The resumed server appends lines with checksums; the mixed journal resumes.
     resumed.host.step();
-    resumed.journal.stepped(resumed.host.world.frame());
+    resumed.journal.stepped(resumed.host.world.frame(), 0.0);
     drop(resumed);
     assert_eq!(
         resume(&path, &options()).unwrap().host.world.frame(),
@@ -281,7 +281,7 @@ fn a_resume_remembers_the_ids_of_its_last_seconds_as_old_as_they_were() {
             journal.replied(&handled.reply);
         }
         host.advance();
-        journal.stepped(host.world.frame());
+        journal.stepped(host.world.frame(), 0.0);
     }
     drop(journal);
     let resumed = resume(&path, &options()).unwrap();

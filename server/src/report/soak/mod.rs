@@ -151,6 +151,12 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
         opts.scene.display().to_string(),
         "--journal".to_string(),
         journal.display().to_string(),
+        // No checkpoints: the soak finds every accepted request in the journal by its id,
+        // which a checkpoint would fold into the world's state.
+        "--journal-bytes".to_string(),
+        u64::MAX.to_string(),
+        "--checkpoint-after-ms".to_string(),
+        "1e300".to_string(),
     ]);
     let network = Network::client(Mode::Peer, vec![endpoint.clone()]);
     let mut server = ServerProcess::start(&first_args)?;
@@ -335,6 +341,15 @@ pub fn run(opts: &SoakOptions) -> Result<SoakReport> {
         rss.push(server.stop());
         let mut resume_args = args.clone();
         resume_args.extend(["--resume".to_string(), journal.display().to_string()]);
+        resume_args.extend(
+            [
+                "--journal-bytes",
+                &u64::MAX.to_string(),
+                "--checkpoint-after-ms",
+                "1e300",
+            ]
+            .map(str::to_string),
+        );
         server = ServerProcess::start(&resume_args)?;
         wait_answered(&watcher, Duration::from_secs(60))?;
         downtime = killed_at.elapsed().as_secs_f64();

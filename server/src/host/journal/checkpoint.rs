@@ -1,0 +1,580 @@
+//! Checkpoints: a journal's bound. When the journal has grown past a size, or replaying
+//! it would take longer than a bound, the host writes the world as it is (with what the
+//! host adds to it: the scene, the `step` count, the answers it remembers) to a file
+//! beside the journal, then starts the journal again from that checkpoint. A resume
+//! restores the checkpoint and replays only what followed, so a run of any length resumes
+//! in about the bound's time and its files hold about the bound's bytes plus the world.
+//!
+//! The switch is safe at any kill: the checkpoint is written to a temporary file, synced
+//! and renamed into place; then the new journal (its header and a line naming the
+//! checkpoint with its size and CRC-32) is written, synced and renamed over the old one;
+//! only then is the previous checkpoint removed. A kill leaves either the old journal
+//! with its checkpoint or the new one with its own.
+//!
+//! A checkpoint file: `RCJ`, a version byte, then the host's state in CBOR (the world as
+//! [`World::save`] writes it).
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{anyhow, bail, Context, Result};
+use ricochet_engine::world::World;
+use serde::{Deserialize, Serialize};
+
+use super::super::answered::{Answered, Remembered};
+use super::super::hosted::Hosted;
+use super::super::HostOptions;
+use super::{signed, Header, Journal, Line};
+
+const MAGIC: &[u8; 3] = b"RCJ";
+const FILE_VERSION: u8 = 1;
+
+/// When the host takes a checkpoint (`run --journal-bytes`, `--checkpoint-after-ms`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Checkpoints {
+    /// The journal's bytes after which a checkpoint is taken.
+    pub journal_bytes: u64,
+    /// Milliseconds of stepping since the last checkpoint after which one is taken: what
+    /// a resume replays, about.
+    pub replay_ms: f64,
+}
+
+impl Default for Checkpoints {
+    fn default() -> Self {
+        Checkpoints {
+            journal_bytes: 16 << 20,
+            replay_ms: 250.0,
+        }
+    }
+}
+
+/// The journal's line naming its checkpoint: `{"checkpoint": {...}}`, right after the
+/// header.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CheckpointRef {
+    /// The file's name, in the journal's directory (a name, never a path).
+    pub file: String,
+    /// The frame the world was at.
+    pub frame: u64,
+    pub bytes: u64,
+    /// CRC-32 of the file, 8 hexadecimal digits.
+    pub crc: String,
+}
+
+/// What a checkpoint holds.
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct State {
+    scene_name: PathBuf,
+    scene_text: String,
+    paused: bool,
+    steps_run: u64,
+    generation: u64,
+    accuracy: Option<String>,
+    answers: Vec<Remembered>,
+    #[serde(with = "serde_bytes")]
+    world: Vec<u8>,
+}
+
+/// A restored checkpoint: the host and the answers it remembered (ages as at the
+/// checkpoint).
+pub struct Restored {
+    pub host: Hosted,
+    pub answers: Vec<Remembered>,
+    pub frame: u64,
+}
+
+/// Writes `bytes` to `path` through a temporary file, synced, then renamed into place.
+fn write_whole(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    let mut file =
+        File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    file.write_all(bytes)
+        .and_then(|()| file.sync_all())
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
+}
+
+/// A checkpoint being written on its own thread, and the journal's lines since its frame
+/// (the new journal's, once the checkpoint is on disk).
+pub(super) struct Pending {
+    writing: std::thread::JoinHandle<Result<CheckpointRef>>,
+    /// The new journal's header.
+    header: String,
+    /// The lines written since the checkpoint's frame, signed.
+    pub(super) lines: Vec<String>,
+}
+
+impl Journal {
+    /// Whether the journal has grown past its bound (in bytes or in replay time) and no
+    /// checkpoint is being written.
+    pub fn checkpoint_due(&self) -> bool {
+        self.pending.is_none()
+            && (self.since.bytes >= self.policy.journal_bytes
+                || self.since.step_ms >= self.policy.replay_ms)
+    }
+
+    /// Starts a checkpoint of `host` (and the answers it remembers): the world is copied
+    /// here, and written on a thread of its own, so the step waits for a copy, not for the
+    /// disk ([`Journal::poll`] switches the journal once the file is whole). The journal
+    /// goes on as it is meanwhile; on an error nothing is lost, and the next attempt waits
+    /// for the bound to be passed again.
+    pub fn checkpoint(
+        &mut self,
+        host: &Hosted,
+        answered: &Answered,
+        world: &str,
+        opts: &HostOptions,
+    ) {
+        if self.pending.is_some() {
+            return;
+        }
+        let frame = host.world.frame();
+        let dir = self
+            .path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let stem = self
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "journal".into());
+        let file = format!("{stem}.{frame}.checkpoint");
+        let copy = host.world.clone();
+        let (scene_name, scene_text) = (host.scene_name.clone(), host.scene_text.clone());
+        let (paused, steps_run, generation) = (host.paused, host.steps_run, host.generation);
+        let accuracy = host.accuracy.clone();
+        let answers = answered.export(Instant::now());
+        let writing = std::thread::Builder::new()
+            .name("checkpoint".into())
+            .spawn(move || {
+                let state = State {
+                    scene_name,
+                    scene_text,
+                    paused,
+                    steps_run,
+                    generation,
+                    accuracy,
+                    answers,
+                    world: copy.save(),
+                };
+                drop(copy);
+                let mut bytes = MAGIC.to_vec();
+                bytes.push(FILE_VERSION);
+                ciborium::into_writer(&state, &mut bytes)
+                    .expect("a checkpoint serialises into memory");
+                write_whole(&dir.join(&file), &bytes)?;
+                Ok(CheckpointRef {
+                    file,
+                    frame,
+                    bytes: bytes.len() as u64,
+                    crc: format!("{:08x}", crc32fast::hash(&bytes)),
+                })
+            });
+        match writing {
+            Ok(writing) => {
+                self.pending = Some(Pending {
+                    writing,
+                    header: serde_json::to_string(&Header::of(world, host, opts))
+                        .expect("headers serialise"),
+                    lines: Vec::new(),
+                });
+                self.since = Default::default();
+            }
+            Err(e) => {
+                tracing::error!("checkpoint not started: {e}");
+                self.since = Default::default();
+            }
+        }
+    }
+
+    /// Once a checkpoint being written is whole on disk: the journal starts again from it
+    /// (its header, the line naming it, and the lines written since its frame), and the
+    /// checkpoint before it is removed. Does nothing while it is being written, unless
+    /// `wait`.
+    pub fn poll(&mut self, wait: bool) {
+        if !self
+            .pending
+            .as_ref()
+            .is_some_and(|p| wait || p.writing.is_finished())
+        {
+            return;
+        }
+        let pending = self.pending.take().expect("a checkpoint pending");
+        let written = pending
+            .writing
+            .join()
+            .unwrap_or_else(|_| Err(anyhow!("the checkpoint's thread panicked")));
+        let result =
+            written.and_then(|reference| self.switch(reference, &pending.header, &pending.lines));
+        if let Err(e) = result {
+            tracing::error!("checkpoint not taken: {e:#}");
+            // The journal went on whole; the next attempt waits for the bound again.
+            self.since = Default::default();
+        }
+    }
+
+    /// Starts the journal again from the checkpoint `reference` names.
+    fn switch(&mut self, reference: CheckpointRef, header: &str, lines: &[String]) -> Result<()> {
+        let dir = self
+            .path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        let file = reference.file.clone();
+        let frame = reference.frame;
+        let mut text = signed(header) + "\n";
+        text += &(signed(
+            &serde_json::to_string(&Line::Checkpoint {
+                checkpoint: reference,
+            })
+            .expect("lines serialise"),
+        ) + "\n");
+        for line in lines {
+            text += line;
+            text.push('\n');
+        }
+        write_whole(&self.path, text.as_bytes())?;
+        let appended = OpenOptions::new()
+            .append(true)
+            .open(&self.path)
+            .with_context(|| format!("cannot append to the journal {}", self.path.display()))?;
+        self.out = BufWriter::new(appended);
+        if let Some(old) = self.checkpoint.replace(file.clone()) {
+            if old != file {
+                let _ = std::fs::remove_file(dir.join(old));
+            }
+        }
+        self.since.bytes = text.len() as u64;
+        tracing::info!(
+            journal = %self.path.display(),
+            checkpoint = %dir.join(&file).display(),
+            frame,
+            "checkpoint taken; the journal starts from it"
+        );
+        Ok(())
+    }
+}
+
+impl Drop for Journal {
+    /// A checkpoint being written is finished and switched to (a server stopping after
+    /// `--max-frames` leaves no stray file).
+    fn drop(&mut self) {
+        self.poll(true);
+    }
+}
+
+/// Removes the checkpoints of the journal at `journal` other than `keep` (and temporary
+/// files of unfinished ones): what a kill in the middle of a switch leaves.
+pub fn remove_strays(journal: &Path, keep: Option<&str>) {
+    let (Some(dir), Some(stem)) = (journal.parent(), journal.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!("{}.", stem.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let frame = rest
+            .strip_suffix(".tmp")
+            .unwrap_or(rest)
+            .strip_suffix(".checkpoint");
+        let ours = frame.is_some_and(|f| !f.is_empty() && f.bytes().all(|b| b.is_ascii_digit()));
+        if ours && Some(name.as_str()) != keep {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// Reads the checkpoint a journal at `journal` names, checked against its line, and
+/// restores the host it holds under `opts` (its limits, not the checkpoint's).
+pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) -> Result<Restored> {
+    let name = &reference.file;
+    let plain = !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name.contains(['/', '\\'])
+        && Path::new(name)
+            .file_name()
+            .is_some_and(|n| n == name.as_str());
+    if !plain {
+        bail!(
+            "the checkpoint must be a file name in the journal's directory, not `{}`",
+            ricochet_engine::world::short(name, 64)
+        );
+    }
+    let dir = journal.parent().map(Path::to_path_buf).unwrap_or_default();
+    let path = dir.join(name);
+    let bytes = std::fs::read(&path)
+        .with_context(|| format!("cannot read the checkpoint {}", path.display()))?;
+    if bytes.len() as u64 != reference.bytes
+        || format!("{:08x}", crc32fast::hash(&bytes)) != reference.crc
+    {
+        bail!(
+            "the checkpoint {} is not the one the journal names (its size or checksum differs: changed or damaged)",
+            path.display()
+        );
+    }
+    if bytes.len() < 4 || &bytes[..3] != MAGIC || bytes[3] != FILE_VERSION {
+        bail!(
+            "{}: not a checkpoint of version {FILE_VERSION}",
+            path.display()
+        );
+    }
+    let state: State = ciborium::from_reader(&bytes[4..]).map_err(|e| {
+        anyhow!(
+            "{}: unreadable: {}",
+            path.display(),
+            ricochet_engine::world::short(&e.to_string(), 200)
+        )
+    })?;
+    let world = World::restore(&state.world, opts.limits.clone())
+        .with_context(|| format!("the checkpoint {}", path.display()))?;
+    if world.frame() != reference.frame {
+        bail!(
+            "the checkpoint {} holds frame {}, the journal says {}",
+            path.display(),
+            world.frame(),
+            reference.frame
+        );
+    }
+    let mut host = Hosted::with_world(world, state.scene_text, state.scene_name, opts);
+    host.paused = state.paused;
+    host.steps_run = state.steps_run;
+    host.generation = state.generation;
+    host.accuracy = state.accuracy;
+    Ok(Restored {
+        host,
+        answers: state.answers,
+        frame: reference.frame,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use ricochet_protocol::command::Command;
+
+    use super::super::super::answered::Answer;
+    use super::super::super::inbox::Sender;
+    use super::super::{resume, Intent};
+    use super::*;
+
+    fn options(policy: Checkpoints) -> HostOptions {
+        HostOptions {
+            checkpoints: policy,
+            ..HostOptions::for_tests("journaled")
+        }
+    }
+
+    fn command(json: &str) -> Command {
+        Command::parse(json.as_bytes()).expect("a valid command")
+    }
+
+    /// The bits a frame shows: every body's position and velocity, every particle's
+    /// position.
+    fn bits(world: &World) -> Vec<u64> {
+        let mut out: Vec<u64> = world
+            .bodies()
+            .iter()
+            .flat_map(|b| [b.pos.x, b.pos.y, b.vel.x, b.vel.y].map(f64::to_bits))
+            .collect();
+        let p = world.particles();
+        out.extend((0..p.len()).flat_map(|i| [p.x[i], p.y[i]].map(|v| u64::from(v.to_bits()))));
+        out
+    }
+
+    /// A journaled run of the 10-level pyramid with commands (an agitation draws on the
+    /// random generator; a spawn adds a body) and a checkpoint whenever the bound is
+    /// passed. Returns the live host, the answers it remembers and the checkpoints taken.
+    fn run(path: &Path, opts: &HostOptions, frames: u64) -> (Hosted, Answered, usize) {
+        let scene = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../assets/scenes/pyramid-10.toml"
+        );
+        let text = std::fs::read_to_string(scene).unwrap();
+        let mut host = Hosted::load(text, PathBuf::from(scene), opts).unwrap();
+        let mut journal = Journal::create(path, "journaled", &host, opts).unwrap();
+        let mut answered = Answered::default();
+        let sender: Sender = Some("peer".into());
+        let mut taken = 0;
+        for _ in 0..frames {
+            let frame = host.world.frame();
+            let json = match frame % 97 {
+                13 => Some(r#"{"do":"agitate","strength":3}"#),
+                50 => Some(r#"{"do":"spawn_particles","preset":"fire","at":[0,12],"count":20}"#),
+                _ => None,
+            };
+            if let Some(json) = json {
+                let cmd = command(json);
+                let id = format!("c{frame}");
+                journal
+                    .before(Intent::Apply(&cmd), frame, &sender, &Some(id.clone()))
+                    .unwrap();
+                let mut handled = host.handle(&cmd);
+                handled.reply.id = Some(id.clone());
+                journal.replied(&handled.reply);
+                answered.remember(sender.clone(), id, Answer::new(&handled.reply, 0));
+            }
+            host.advance();
+            journal.stepped(host.world.frame(), f64::from(host.last_step_ms));
+            if journal.checkpoint_due() {
+                journal.checkpoint(&host, &answered, "journaled", opts);
+                taken += 1;
+            }
+            // Written while the world steps on, and switched to once whole: waited for
+            // every fifth step here (the disk's speed decides nothing).
+            journal.poll(frame.is_multiple_of(5));
+        }
+        journal.poll(true);
+        (host, answered, taken)
+    }
+
+    #[test]
+    fn a_journal_starts_again_from_each_checkpoint_and_resumes_to_the_same_bits() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let policy = Checkpoints {
+            journal_bytes: 4096,
+            replay_ms: f64::INFINITY,
+        };
+        let opts = options(policy);
+        let (mut host, _, taken) = run(&path, &opts, 600);
+        assert!(taken >= 3, "{taken} checkpoints");
+        // The journal holds what followed the last checkpoint: within its bound, plus a
+        // line.
+        let size = std::fs::metadata(&path).unwrap().len();
+        assert!(size <= policy.journal_bytes + 1024, "{size} bytes");
+        // One checkpoint beside it: the ones before were removed.
+        let files: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".checkpoint"))
+            .collect();
+        assert_eq!(files.len(), 1, "{files:?}");
+        // What a kill in the middle of a switch leaves is removed by a resume; other
+        // files are not.
+        for stray in [
+            "world.journal.5.checkpoint",
+            "world.journal.7.checkpoint.tmp",
+            "world.journal.notes",
+        ] {
+            std::fs::write(dir.path().join(stray), b"x").unwrap();
+        }
+        let mut resumed = resume(&path, &opts).unwrap();
+        let left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(
+            left.contains(&files[0]) && left.contains(&"world.journal.notes".to_string()),
+            "{left:?}"
+        );
+        assert!(
+            !left
+                .iter()
+                .any(|n| n == "world.journal.5.checkpoint" || n == "world.journal.7.checkpoint.tmp"),
+            "{left:?}"
+        );
+        assert_eq!(resumed.host.world.frame(), host.world.frame());
+        assert_eq!(bits(&resumed.host.world), bits(&host.world));
+        assert_eq!(resumed.host.steps_run, host.steps_run);
+        // And on: the same steps give the same bits.
+        for _ in 0..120 {
+            host.advance();
+            resumed.host.advance();
+        }
+        assert_eq!(bits(&resumed.host.world), bits(&host.world));
+    }
+
+    #[test]
+    fn answers_remembered_at_a_checkpoint_are_remembered_after_a_resume() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        // A checkpoint once the steps since the last one took any time at all: after
+        // every step.
+        let opts = options(Checkpoints {
+            journal_bytes: 1 << 30,
+            replay_ms: 1e-9,
+        });
+        let (host, answered, taken) = run(&path, &opts, 200);
+        assert!(taken >= 30, "{taken}");
+        let resumed = resume(&path, &opts).unwrap();
+        assert_eq!(bits(&resumed.host.world), bits(&host.world));
+        let sender: Sender = Some("peer".into());
+        for id in ["c13", "c50", "c110", "c147"] {
+            let before = answered.get(&sender, id).expect("answered live");
+            let after = resumed
+                .answered
+                .get(&sender, id)
+                .expect("remembered after the resume");
+            assert_eq!(before.reply, after.reply, "{id}");
+        }
+        assert!(resumed.answered.get(&None, "c13").is_none(), "per sender");
+    }
+
+    #[test]
+    fn a_checkpoint_changed_or_named_outside_the_journals_directory_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let opts = options(Checkpoints {
+            journal_bytes: 4096,
+            replay_ms: f64::INFINITY,
+        });
+        run(&path, &opts, 300);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let second = text.lines().nth(1).unwrap();
+        let reference = match serde_json::from_str::<Line>(super::super::text_of(second).unwrap()) {
+            Ok(Line::Checkpoint { checkpoint }) => checkpoint,
+            _ => panic!("no checkpoint line: {second}"),
+        };
+        let refusal =
+            |opts: &HostOptions| format!("{:#}", resume(&path, opts).err().expect("refused"));
+        // A byte of the checkpoint changed.
+        let file = dir.path().join(&reference.file);
+        let good = std::fs::read(&file).unwrap();
+        let mut bad = good.clone();
+        let mid = bad.len() / 2;
+        bad[mid] ^= 0x40;
+        std::fs::write(&file, &bad).unwrap();
+        let e = refusal(&opts);
+        assert!(e.contains("line 2") && e.contains("checksum"), "{e}");
+        std::fs::write(&file, &good).unwrap();
+        // A checkpoint named by a path (the line signed again, as an edit would): never read.
+        for name in ["../world.journal.0.checkpoint", "/etc/passwd", ".."] {
+            let moved = CheckpointRef {
+                file: name.to_string(),
+                ..reference.clone()
+            };
+            let line = serde_json::to_string(&Line::Checkpoint { checkpoint: moved }).unwrap();
+            let changed: String = text
+                .lines()
+                .enumerate()
+                .map(|(k, l)| if k == 1 { signed(&line) } else { l.to_string() } + "\n")
+                .collect();
+            std::fs::write(&path, changed).unwrap();
+            let e = refusal(&opts);
+            assert!(e.contains("must be a file name"), "{name}: {e}");
+        }
+        // Missing: named.
+        std::fs::write(&path, &text).unwrap();
+        std::fs::remove_file(&file).unwrap();
+        let e = refusal(&opts);
+        assert!(e.contains("cannot read the checkpoint"), "{e}");
+    }
+}
