@@ -13,6 +13,7 @@
 
 pub mod bench;
 pub mod chart;
+pub mod hostile;
 pub mod scene_tradeoff;
 pub mod soak;
 pub mod suite;

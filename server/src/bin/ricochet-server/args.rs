@@ -245,6 +245,21 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: Option<PathBuf>,
     },
+    /// Attack real servers on loopback as the security audit did, each attack with its
+    /// defence and with that defence switched off by the server's flags, and measure what
+    /// the defence buys (figures, not pass/fail). Prints a table; with --out, writes it
+    /// between the hostile markers of FILE (docs/security.md). Use a release build.
+    Hostile {
+        /// Seconds of each attack.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Where the shipped scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Write the table between the hostile markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
     /// Make the TLS certificates of a secured deployment (assets/zenoh/): a certificate
     /// authority and the router's certificate signed by it, as PEM files in DIR
     /// (ca.pem, ca-key.pem, router.pem, router-key.pem; keys readable by their owner

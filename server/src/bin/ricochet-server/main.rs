@@ -111,6 +111,20 @@ fn main() -> Result<()> {
             }
             Ok(())
         }
+        Command::Hostile {
+            seconds,
+            scenes,
+            out,
+        } => {
+            let report = ricochet_server::report::hostile::run(&scenes, seconds)?;
+            let table = report.to_markdown();
+            println!("{table}");
+            if let Some(out) = out {
+                ricochet_server::report::splice(&out, "hostile", &table)?;
+                eprintln!("wrote the table of {}", out.display());
+            }
+            Ok(())
+        }
         Command::Certs { out, hosts, days } => {
             for file in ricochet_server::certs::make(&out, &hosts, days)? {
                 eprintln!("wrote {}", file.display());

@@ -11,7 +11,7 @@
 //!
 //! This measures; it asserts nothing. Use a release build.
 
-mod process;
+pub(crate) mod process;
 mod table;
 
 pub use process::{Memory, IDLE_AFTER, SETTLE, WARM_UP};
@@ -88,14 +88,14 @@ pub struct SoakReport {
     pub rss: Vec<Memory>,
 }
 
-fn free_endpoint() -> Result<String> {
+pub(crate) fn free_endpoint() -> Result<String> {
     let port = std::net::TcpListener::bind("127.0.0.1:0")?
         .local_addr()?
         .port();
     Ok(format!("tcp/127.0.0.1:{port}"))
 }
 
-fn wait_answered(client: &Client, limit: Duration) -> Result<Duration> {
+pub(crate) fn wait_answered(client: &Client, limit: Duration) -> Result<Duration> {
     let began = Instant::now();
     while began.elapsed() < limit {
         if client

@@ -63,7 +63,7 @@ pub const SETTLE: Duration = Duration::from_secs(crate::host::TRIM_EVERY.as_secs
 /// When a server's memory counts as warmed up.
 pub const WARM_UP: Duration = Duration::from_secs(10);
 
-pub(super) struct ServerProcess {
+pub(crate) struct ServerProcess {
     child: Child,
     rss: Arc<Mutex<(Memory, Option<Instant>)>>,
     sampling: Arc<AtomicBool>,
@@ -78,7 +78,7 @@ impl Drop for ServerProcess {
 }
 
 impl ServerProcess {
-    pub(super) fn start(args: &[String]) -> Result<ServerProcess> {
+    pub(crate) fn start(args: &[String]) -> Result<ServerProcess> {
         let child = Process::new(std::env::current_exe()?)
             .arg("run")
             .args(args)
