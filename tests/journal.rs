@@ -12,6 +12,7 @@ use std::process::Command as Process;
 use std::time::Duration;
 
 use common::*;
+use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, ServerCommand, TimedAction};
 
 /// A dump's lines by frame (the last line may be cut short by a kill: skipped).
@@ -23,6 +24,21 @@ fn dump_lines(path: &Path) -> BTreeMap<u64, String> {
             Some((value["frame"].as_u64()?, line.to_string()))
         })
         .collect()
+}
+
+/// Spawns `n` minions in a row, each request answered as applied, `pause` apart.
+fn spawn_minions(client: &Client, n: usize, pause: Duration) {
+    for i in 0..n {
+        let reply = request(
+            client,
+            Command::World(Action::SpawnMinion {
+                at: [40.0 + 15.0 * i as f64, 80.0],
+                shape: None,
+            }),
+        );
+        assert!(reply.ok, "{reply:?}");
+        std::thread::sleep(pause);
+    }
 }
 
 #[test]
@@ -38,17 +54,7 @@ fn a_killed_server_resumes_from_its_journal_bit_for_bit() {
         &["--journal", &journal, "--dump", &dump_a],
     );
     let client = a.client();
-    for i in 0..8 {
-        let reply = request(
-            &client,
-            Command::World(Action::SpawnMinion {
-                at: [40.0 + 15.0 * i as f64, 80.0],
-                shape: None,
-            }),
-        );
-        assert!(reply.ok, "{reply:?}");
-        std::thread::sleep(Duration::from_millis(40));
-    }
+    spawn_minions(&client, 8, Duration::from_millis(40));
     let retried = br#"{"do":"agitate","strength":30,"id":"once"}"#.to_vec();
     let first = client.request_raw(retried.clone(), TIMEOUT).unwrap();
     assert!(first.ok, "{first:?}");
@@ -169,17 +175,7 @@ fn a_killed_server_resumes_from_its_last_checkpoint_bit_for_bit() {
     let retried = br#"{"do":"agitate","strength":30,"id":"before"}"#.to_vec();
     let first = client.request_raw(retried.clone(), TIMEOUT).unwrap();
     assert!(first.ok, "{first:?}");
-    for i in 0..6 {
-        let reply = request(
-            &client,
-            Command::World(Action::SpawnMinion {
-                at: [40.0 + 15.0 * i as f64, 80.0],
-                shape: None,
-            }),
-        );
-        assert!(reply.ok, "{reply:?}");
-        std::thread::sleep(Duration::from_millis(150));
-    }
+    spawn_minions(&client, 6, Duration::from_millis(150));
     let checkpoints = || {
         std::fs::read_dir(dir.path())
             .unwrap()
