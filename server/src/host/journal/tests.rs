@@ -222,7 +222,7 @@ fn a_bad_line_in_the_middle_is_refused_naming_its_line() {
     let frame = journal_of(&path, 3);
     append(&path, b"{\"at\":garbage}\n");
     append(&path, format!("{{\"at\":{}}}\n", frame + 1).as_bytes());
-    let error = format!("{:#}", resume(&path, &options()).err().unwrap());
+    let error = refusal(&path, &options());
     // The header, three steps, then the bad line: line 5.
     assert!(error.contains("world.journal line 5"), "{error}");
 }
@@ -232,7 +232,7 @@ fn an_empty_journal_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("world.journal");
     std::fs::write(&path, "").unwrap();
-    let error = format!("{:#}", resume(&path, &options()).err().unwrap());
+    let error = refusal(&path, &options());
     assert!(error.contains("line 1: empty"), "{error}");
 }
 
