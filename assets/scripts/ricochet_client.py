@@ -10,7 +10,7 @@ Needs only the standard library and `eclipse-zenoh` from PyPI:
 
 `watch` prints one JSON object per frame: frame, time, the dynamic bodies (id, x, y, vx,
 vy, collided), the static body count from the snapshot, particles (x, y, size, rgba) and
-the step's figures. The frame layout is documented in protocol/src/frame.rs; this file
+the step's figures. The frame layout is documented in protocol/src/frame/mod.rs; this file
 is a second, independent reader of it.
 """
 import argparse
@@ -20,12 +20,22 @@ import sys
 import time
 import uuid
 
-POS_QUANTUM = 1.0 / 1024.0
-VEL_QUANTUM = 1.0 / 256.0
+PROTOCOL_VERSION = 3
+FINE = 2.0 ** -24
+# Position, displacement and acceleration steps, in FINE units.
+POS_STEP, DISP_STEP, ACC_STEP = 1 << 14, 1 << 10, 1 << 6
 PARTICLE_QUANTUM = 1.0 / 256.0
 COLOR_SCALE = 63.75
-KIND_DELTA, KIND_KEY, KIND_STATICS = 0, 1, 2
-NEW, POS, VEL, COLLIDED, REMOVED = 0x01, 0x02, 0x04, 0x08, 0x10
+KIND_DELTA, KIND_KEY, KIND_STATICS, KIND_RESYNC = 0, 1, 2, 3
+NEW, POS, VEL, COLLIDED, REMOVED, ACC, SAME_SHAPE, SAME_GROUP = 0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80
+HALT = 0x40  # in a record that is not NEW
+I64 = 1 << 64
+
+
+def wrap(v):
+    """v as a signed 64-bit integer, wrapping as the Rust codec computes."""
+    v &= I64 - 1
+    return v - I64 if v >= 1 << 63 else v
 STATS = ("step_ms", "contacts", "relaxation_iterations", "deepest_penetration", "kinetic_energy",
          "particle_contacts", "overruns", "dynamic_bodies", "particles", "emitters",
          "energy_change", "residual")
@@ -88,9 +98,11 @@ class FrameDecoder:
         if bytes(r.take(3)) != b"RCF":
             raise DecodeError("no RCF magic")
         version, kind = r.unpack("<BB")
-        if version != 2:
-            raise DecodeError(f"frame version {version}, this reader knows 2")
-        frame, t = r.unpack("<Qd")
+        if version != PROTOCOL_VERSION:
+            raise DecodeError(f"frame version {version}, this reader knows {PROTOCOL_VERSION}")
+        if kind > KIND_RESYNC:
+            raise DecodeError(f"unknown kind {kind}")
+        frame, t, dt = r.unpack("<Qdd")
         stats = dict(zip(STATS, r.unpack(STATS_FORMAT)))
         if kind == KIND_DELTA and self.synced and frame <= self.frame:
             raise DecodeError(f"frame {frame} is older than the state held")
@@ -103,6 +115,13 @@ class FrameDecoder:
             emitters.append({"x": x, "y": y, "remaining": r.varint()})
         # Copies on write: a payload refused half-way leaves the state held untouched.
         bodies = {} if kind != KIND_DELTA else dict(self.bodies)
+        # Every body moves on as predicted; a record corrects what the prediction missed.
+        if kind == KIND_DELTA:
+            for k, b in bodies.items():
+                d = [wrap(b["d"][i] + b["a"][i]) for i in range(2)]
+                bodies[k] = dict(b, d=d, p=[wrap(b["p"][i] + d[i]) for i in range(2)], dt=dt)
+        units = (1, 1, 1) if kind == KIND_RESYNC else (POS_STEP, DISP_STEP, ACC_STEP)
+        prev = {"id": "", "group": "", "shape": None, "p": [0, 0]}
         key = 0
         for _ in range(r.varint()):
             key += r.varint()
@@ -111,21 +130,40 @@ class FrameDecoder:
                 bodies.pop(key, None)
                 continue
             if flags & NEW:
-                circle = r.take(1)[0] != 0
-                w, h = r.unpack("<ff")
-                ident, group = r.text(), r.text()
-                qpos = [r.svarint(), r.svarint()]
-                qvel = [r.svarint(), r.svarint()]
-                bodies[key] = {"id": ident, "group": group, "circle": circle, "size": [w, h], "qpos": qpos, "qvel": qvel}
+                if flags & SAME_SHAPE:
+                    if prev["shape"] is None:
+                        raise DecodeError(f"body {key}: no shape before")
+                    circle, size = prev["shape"]
+                else:
+                    circle = r.take(1)[0] != 0
+                    size = list(r.unpack("<ff"))
+                shared = r.varint()
+                if shared > len(prev["id"].encode("utf-8")):
+                    raise DecodeError(f"body {key}: id prefix of {shared} bytes")
+                try:
+                    ident = prev["id"].encode("utf-8")[:shared].decode("utf-8") + r.text()
+                except UnicodeDecodeError:
+                    raise DecodeError(f"body {key}: id prefix of {shared} bytes") from None
+                group = prev["group"] if flags & SAME_GROUP else r.text()
+                pu = [wrap(prev["p"][0] + r.svarint()), wrap(prev["p"][1] + r.svarint())]
+                d = [wrap(r.svarint() * units[1]), wrap(r.svarint() * units[1])] if flags & VEL else [0, 0]
+                a = [wrap(r.svarint() * units[2]), wrap(r.svarint() * units[2])] if flags & ACC else [0, 0]
+                prev = {"id": ident, "group": group, "shape": (circle, size), "p": pu}
+                bodies[key] = {"id": ident, "group": group, "circle": circle, "size": size,
+                               "p": [wrap(v * units[0]) for v in pu], "d": d, "a": a, "dt": dt}
             else:
                 b = bodies.get(key)
                 if b is None:
                     raise DecodeError(f"update of unknown body {key}")
                 b = bodies[key] = dict(b)
                 if flags & POS:
-                    b["qpos"] = [b["qpos"][0] + r.svarint(), b["qpos"][1] + r.svarint()]
+                    b["p"] = [wrap(b["p"][0] + r.svarint() * POS_STEP), wrap(b["p"][1] + r.svarint() * POS_STEP)]
                 if flags & VEL:
-                    b["qvel"] = [b["qvel"][0] + r.svarint(), b["qvel"][1] + r.svarint()]
+                    b["d"] = [wrap(b["d"][0] + r.svarint() * DISP_STEP), wrap(b["d"][1] + r.svarint() * DISP_STEP)]
+                if flags & ACC:
+                    b["a"] = [wrap(b["a"][0] + r.svarint() * ACC_STEP), wrap(b["a"][1] + r.svarint() * ACC_STEP)]
+                if flags & HALT:
+                    b["d"], b["a"] = [0, 0], [0, 0]
             bodies[key]["collided"] = bool(flags & COLLIDED)
         particles = {} if kind != KIND_DELTA else dict(self.particles)
         pid = 0
@@ -167,8 +205,10 @@ class FrameDecoder:
                 "size": p["size"] * p["factor"] ** elapsed, "color": color}
 
     def view(self):
-        bodies = [{"id": b["id"], "x": b["qpos"][0] * POS_QUANTUM, "y": b["qpos"][1] * POS_QUANTUM,
-                   "vx": b["qvel"][0] * VEL_QUANTUM, "vy": b["qvel"][1] * VEL_QUANTUM, "collided": b["collided"]}
+        def vel(b, i):
+            return b["d"][i] * FINE / b["dt"] if b["dt"] > 0 else 0.0
+        bodies = [{"id": b["id"], "x": b["p"][0] * FINE, "y": b["p"][1] * FINE,
+                   "vx": vel(b, 0), "vy": vel(b, 1), "collided": b["collided"]}
                   for _, b in sorted(self.bodies.items())]
         return {"frame": self.frame, "t": self.time, "bodies": bodies, "statics": len(self.statics),
                 "particles": [self.particle_view(p) for _, p in sorted(self.particles.items())],
@@ -345,6 +385,19 @@ def watch(session, world, frames, seconds, timeout):
     sub.undeclare()
 
 
+def decode_file(path):
+    decoder = FrameDecoder()
+    with open(path, "rb") as f:
+        data = f.read()
+    at = 0
+    while at < len(data):
+        (n,) = struct.unpack_from("<I", data, at)
+        payload = data[at + 4:at + 4 + n]
+        at += 4 + n
+        if decoder.apply(payload) != KIND_STATICS:
+            print(json.dumps(decoder.view()), flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--world", default="default")
@@ -360,7 +413,13 @@ def main():
     w = sub.add_parser("watch", help="print every frame as JSON")
     w.add_argument("--frames", type=int)
     w.add_argument("--seconds", type=float)
+    d = sub.add_parser("decode", help="decode recorded payloads (each a u32 little-endian "
+                       "length, then the bytes) and print each frame as `watch` does; no network")
+    d.add_argument("file")
     args = ap.parse_args()
+    if args.cmd == "decode":
+        decode_file(args.file)
+        return 0
     session = open_session(args)
     try:
         if args.cmd == "send":

@@ -134,6 +134,7 @@ pub fn encode_frame(
     encoder.encode(
         world.frame(),
         world.time(),
+        world.config.dt,
         &figures,
         &emitters,
         &bodies,

@@ -200,15 +200,17 @@ mod tests {
     use super::*;
 
     fn body(group: &str, circle: bool, pos: [f64; 2], size: [f32; 2], collided: bool) -> Body {
-        let q = |v: f64| (v * 1024.0).round() as i64;
+        let q = |v: f64| (v / ricochet_protocol::frame::FINE).round() as i64;
         Body {
             key: 0,
             id: "b".into(),
             group: group.into(),
             circle,
             size,
-            qpos: [q(pos[0]), q(pos[1])],
-            qvel: [0, 0],
+            p: [q(pos[0]), q(pos[1])],
+            d: [0, 0],
+            a: [0, 0],
+            dt: 0.0,
             collided,
         }
     }

@@ -6,8 +6,9 @@
 use super::records::{self, Change, Section};
 use super::wire::Reader;
 use super::{
-    Body, DecodeError, EmitterIn, FrameStats, Particle, COLLIDED, KIND_DELTA, KIND_STATICS, MAGIC,
-    NEW, POS, REMOVED, VEL,
+    Body, DecodeError, EmitterIn, FrameStats, Particle, ACC, ACC_STEP, COLLIDED, DISP_STEP, HALT,
+    KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, POS, POS_STEP, REMOVED, SAME_GROUP,
+    SAME_SHAPE, VEL,
 };
 
 /// What a receiver knows of a world, kept up to date frame by frame.
@@ -22,6 +23,8 @@ pub struct FrameDecoder {
     pub emitters: Vec<EmitterIn>,
     pub frame: u64,
     pub time: f64,
+    /// Seconds a frame stands for.
+    pub dt: f64,
     pub stats: FrameStats,
     /// Whether a key frame has been applied since the last gap.
     pub synced: bool,
@@ -33,6 +36,7 @@ pub struct Header {
     pub kind: u8,
     pub frame: u64,
     pub time: f64,
+    pub dt: f64,
     pub stats: FrameStats,
 }
 
@@ -45,11 +49,12 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
         return Err(DecodeError::Version(version));
     }
     let kind = r.u8()?;
-    if kind > KIND_STATICS {
+    if kind > KIND_RESYNC {
         return Err(DecodeError::Malformed(format!("unknown kind {kind}")));
     }
     let frame = r.u64()?;
     let time = f64::from_bits(r.u64()?);
+    let dt = f64::from_bits(r.u64()?);
     let stats = FrameStats {
         step_ms: r.f32()?,
         contacts: r.u32()?,
@@ -68,6 +73,7 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
         kind,
         frame,
         time,
+        dt,
         stats,
     })
 }
@@ -115,7 +121,12 @@ impl FrameDecoder {
         }
         // A delta is read against what is held; a key frame or a snapshot against nothing.
         let delta = header.kind == KIND_DELTA;
-        let bodies = read_bodies(&mut r, if delta { &self.bodies } else { &[] }, !delta)?;
+        let bodies = read_bodies(
+            &mut r,
+            if delta { &self.bodies } else { &[] },
+            header.kind,
+            header.dt,
+        )?;
         let particles = read_particles(
             &mut r,
             if delta {
@@ -134,17 +145,23 @@ impl FrameDecoder {
         // All of it was read and checked: now it is applied.
         if header.kind == KIND_STATICS {
             self.statics.clear();
-            records::fold(&mut self.statics, bodies, patch_body);
+            records::fold(&mut self.statics, bodies, patch_body, |_| {});
             return Ok(header);
         }
         if !delta {
             self.bodies.clear();
         }
-        records::fold(&mut self.bodies, bodies, patch_body);
+        // Every body without a record moves on as predicted.
+        let dt = header.dt;
+        records::fold(&mut self.bodies, bodies, patch_body, |b| {
+            (b.p, b.d) = b.predicted();
+            b.dt = dt;
+        });
         self.particles = particles;
         self.emitters = emitters;
         self.frame = header.frame;
         self.time = header.time;
+        self.dt = header.dt;
         self.stats = header.stats;
         self.synced = true;
         Ok(header)
@@ -162,28 +179,111 @@ fn add(q: i64, change: i64) -> Result<i64, DecodeError> {
         .ok_or_else(|| DecodeError::Malformed("a coordinate overflows".into()))
 }
 
-/// A held body's new state, read and checked.
+/// A held body's state after a record, read and checked.
 struct BodyPatch {
-    qpos: Option<[i64; 2]>,
-    qvel: Option<[i64; 2]>,
+    p: [i64; 2],
+    d: [i64; 2],
+    a: [i64; 2],
+    dt: f64,
     collided: bool,
 }
 
 fn patch_body(b: &mut Body, p: BodyPatch) {
-    if let Some(qpos) = p.qpos {
-        b.qpos = qpos;
+    (b.p, b.d, b.a, b.dt, b.collided) = (p.p, p.d, p.a, p.dt, p.collided);
+}
+
+/// Two signed varints, times `unit` (wrapping, as the encoder computes).
+fn pair(r: &mut Reader, unit: i64) -> Result<[i64; 2], DecodeError> {
+    Ok([
+        r.svarint()?.wrapping_mul(unit),
+        r.svarint()?.wrapping_mul(unit),
+    ])
+}
+
+/// The previous NEW record of a section, which the next one is read against.
+#[derive(Default)]
+struct Previous {
+    id: String,
+    group: String,
+    shape: Option<(bool, [f32; 2])>,
+    p: [i64; 2],
+}
+
+fn read_new_body(
+    r: &mut Reader,
+    prev: &mut Previous,
+    key: u32,
+    flags: u8,
+    units: [i64; 3],
+    dt: f64,
+) -> Result<Body, DecodeError> {
+    let (circle, size) = if flags & SAME_SHAPE != 0 {
+        prev.shape
+            .ok_or_else(|| DecodeError::Malformed(format!("body {key}: no shape before")))?
+    } else {
+        (r.u8()? != 0, [r.f32()?, r.f32()?])
+    };
+    let shared = usize::try_from(r.varint()?).unwrap_or(usize::MAX);
+    if shared > prev.id.len() || !prev.id.is_char_boundary(shared) {
+        return Err(DecodeError::Malformed(format!(
+            "body {key}: id prefix of {shared} bytes"
+        )));
     }
-    if let Some(qvel) = p.qvel {
-        b.qvel = qvel;
-    }
-    b.collided = p.collided;
+    let mut id = String::with_capacity(shared + 8);
+    id.push_str(&prev.id[..shared]);
+    id.push_str(&r.str()?);
+    let group = if flags & SAME_GROUP != 0 {
+        prev.group.clone()
+    } else {
+        r.str()?
+    };
+    let step = [r.svarint()?, r.svarint()?];
+    let pu = [
+        prev.p[0].wrapping_add(step[0]),
+        prev.p[1].wrapping_add(step[1]),
+    ];
+    let p = pu.map(|v| v.wrapping_mul(units[0]));
+    let d = if flags & VEL != 0 {
+        pair(r, units[1])?
+    } else {
+        [0; 2]
+    };
+    let a = if flags & ACC != 0 {
+        pair(r, units[2])?
+    } else {
+        [0; 2]
+    };
+    prev.id.clone_from(&id);
+    prev.group.clone_from(&group);
+    prev.shape = Some((circle, size));
+    prev.p = pu;
+    Ok(Body {
+        key,
+        id,
+        group,
+        circle,
+        size,
+        p,
+        d,
+        a,
+        dt,
+        collided: flags & COLLIDED != 0,
+    })
 }
 
 fn read_bodies(
     r: &mut Reader,
     held: &[Body],
-    fresh: bool,
+    kind: u8,
+    dt: f64,
 ) -> Result<Section<Body, BodyPatch>, DecodeError> {
+    let fresh = kind != KIND_DELTA;
+    let units = if kind == KIND_RESYNC {
+        [1, 1, 1]
+    } else {
+        [POS_STEP, DISP_STEP, ACC_STEP]
+    };
+    let mut prev = Previous::default();
     records::read(r, held, |r, key, flags, existing| {
         if flags & REMOVED != 0 {
             return match existing {
@@ -194,22 +294,9 @@ fn read_bodies(
             };
         }
         if flags & NEW != 0 {
-            let circle = r.u8()? != 0;
-            let size = [r.f32()?, r.f32()?];
-            let id = r.str()?;
-            let group = r.str()?;
-            let qpos = [r.svarint()?, r.svarint()?];
-            let qvel = [r.svarint()?, r.svarint()?];
-            return Ok(Change::New(Body {
-                key,
-                id,
-                group,
-                circle,
-                size,
-                qpos,
-                qvel,
-                collided: flags & COLLIDED != 0,
-            }));
+            return Ok(Change::New(read_new_body(
+                r, &mut prev, key, flags, units, dt,
+            )?));
         }
         let b = existing.ok_or_else(|| {
             DecodeError::Malformed(format!(
@@ -217,18 +304,28 @@ fn read_bodies(
                 if fresh { " in a key frame" } else { "" }
             ))
         })?;
-        let mut patch = BodyPatch {
-            qpos: None,
-            qvel: None,
+        let (mut p, mut d) = b.predicted();
+        let mut a = b.a;
+        for (flag, unit, v) in [
+            (POS, POS_STEP, &mut p),
+            (VEL, DISP_STEP, &mut d),
+            (ACC, ACC_STEP, &mut a),
+        ] {
+            if flags & flag != 0 {
+                let r = pair(r, unit)?;
+                *v = [v[0].wrapping_add(r[0]), v[1].wrapping_add(r[1])];
+            }
+        }
+        if flags & HALT != 0 {
+            (d, a) = ([0; 2], [0; 2]);
+        }
+        Ok(Change::Patch(BodyPatch {
+            p,
+            d,
+            a,
+            dt,
             collided: flags & COLLIDED != 0,
-        };
-        if flags & POS != 0 {
-            patch.qpos = Some([add(b.qpos[0], r.svarint()?)?, add(b.qpos[1], r.svarint()?)?]);
-        }
-        if flags & VEL != 0 {
-            patch.qvel = Some([add(b.qvel[0], r.svarint()?)?, add(b.qvel[1], r.svarint()?)?]);
-        }
-        Ok(Change::Patch(patch))
+        }))
     })
 }
 

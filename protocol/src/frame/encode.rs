@@ -2,12 +2,13 @@
 //! (deltas against what receivers were last told, or key frames) and statics snapshots
 //! flow out as bytes.
 
-use super::records::{diff, Records};
+use super::records::{diff, Keyed, Records};
 use super::wire::{put_str, put_svarint, put_varint};
 use super::{
-    Body, BodyIn, EmitterIn, FrameStats, Particle, ParticlesIn, COLLIDED, COLOR_SCALE,
-    HEADER_BYTES, KIND_DELTA, KIND_KEY, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, POS,
-    POS_QUANTUM, VEL, VEL_QUANTUM,
+    Body, BodyIn, EmitterIn, FrameStats, Particle, ParticlesIn, ACC, ACC_STEP, COLLIDED,
+    COLOR_SCALE, DISP_STEP, DISP_TOLERANCE, FINE, HALT, HEADER_BYTES, KIND_DELTA, KIND_KEY,
+    KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, POS, POS_STEP, POS_TOLERANCE,
+    SAME_GROUP, SAME_SHAPE, VEL,
 };
 
 fn quantize(v: f64, quantum: f64) -> i64 {
@@ -19,16 +20,34 @@ fn quantize(v: f64, quantum: f64) -> i64 {
     }
 }
 
+/// `v / step` rounded to the nearest integer, ties away from zero.
+fn steps(v: i64, step: i64) -> i64 {
+    let (v, step) = (v as i128, step as i128);
+    let half = step / 2;
+    let q = if v >= 0 {
+        (v + half) / step
+    } else {
+        -((-v + half) / step)
+    };
+    q.clamp(i64::MIN as i128, i64::MAX as i128) as i64
+}
+
+/// `v` rounded to a multiple of `step`.
+fn round_to(v: i64, step: i64) -> i64 {
+    steps(v, step).wrapping_mul(step)
+}
+
 fn color_byte(c: f32) -> u8 {
     (c * COLOR_SCALE).round().clamp(0.0, 255.0) as u8
 }
 
-fn put_header(out: &mut Vec<u8>, kind: u8, frame: u64, time: f64, s: &FrameStats) {
+fn put_header(out: &mut Vec<u8>, kind: u8, frame: u64, time: f64, dt: f64, s: &FrameStats) {
     out.extend_from_slice(MAGIC);
     out.push(crate::PROTOCOL_VERSION);
     out.push(kind);
     out.extend_from_slice(&frame.to_le_bytes());
     out.extend_from_slice(&time.to_le_bytes());
+    out.extend_from_slice(&dt.to_le_bytes());
     for v in [
         s.step_ms.to_bits(),
         s.contacts,
@@ -47,35 +66,113 @@ fn put_header(out: &mut Vec<u8>, kind: u8, frame: u64, time: f64, s: &FrameStats
     }
 }
 
-fn body_of(b: &BodyIn) -> Body {
+/// What receivers hold of a body, beside what the encoder knows of its truth.
+#[derive(Clone, Debug)]
+struct Sent {
+    body: Body,
+    /// The body's true position at the last frame, in [`FINE`] units.
+    truth: [i64; 2],
+    /// Its true displacement over the last frame.
+    disp: [i64; 2],
+    /// The change of that displacement at the last frame.
+    accel: [i64; 2],
+}
+
+impl Keyed for Sent {
+    fn key(&self) -> u32 {
+        self.body.key
+    }
+}
+
+fn fine(v: [f64; 2]) -> [i64; 2] {
+    v.map(|c| quantize(c, FINE))
+}
+
+/// A body as a key frame or a snapshot states it: its position, displacement and
+/// acceleration rounded to their quanta.
+fn body_of(b: &BodyIn, disp: [i64; 2], accel: [i64; 2], dt: f64) -> Body {
     Body {
         key: b.key,
         id: b.id.to_string(),
         group: b.group.to_string(),
         circle: b.circle,
         size: [b.size[0] as f32, b.size[1] as f32],
-        qpos: [
-            quantize(b.pos[0], POS_QUANTUM),
-            quantize(b.pos[1], POS_QUANTUM),
-        ],
-        qvel: [
-            quantize(b.vel[0], VEL_QUANTUM),
-            quantize(b.vel[1], VEL_QUANTUM),
-        ],
+        p: fine(b.pos).map(|v| round_to(v, POS_STEP)),
+        d: disp.map(|v| round_to(v, DISP_STEP)),
+        a: accel.map(|v| round_to(v, ACC_STEP)),
+        dt,
         collided: b.collided,
     }
 }
 
-fn put_new_body(out: &mut Vec<u8>, b: &Body) {
-    out.push(NEW | POS | VEL | if b.collided { COLLIDED } else { 0 });
-    out.push(b.circle as u8);
-    out.extend_from_slice(&b.size[0].to_le_bytes());
-    out.extend_from_slice(&b.size[1].to_le_bytes());
-    put_str(out, &b.id);
-    put_str(out, &b.group);
-    for v in b.qpos.iter().chain(&b.qvel) {
-        put_svarint(out, *v);
+/// The units NEW records state `p`, `d` and `a` in: the quanta, or [`FINE`] units in a
+/// resync key frame.
+#[derive(Clone, Copy)]
+struct Units([i64; 3]);
+
+const COARSE: Units = Units([POS_STEP, DISP_STEP, ACC_STEP]);
+const EXACT: Units = Units([1, 1, 1]);
+
+/// The previous NEW record of a section, which the next one is written against.
+#[derive(Default)]
+struct Previous {
+    id: String,
+    group: String,
+    shape: Option<(bool, [f32; 2])>,
+    p: [i64; 2],
+}
+
+/// The length of the prefix `a` and `b` share, at a character boundary.
+fn shared_prefix(a: &str, b: &str) -> usize {
+    let mut n = a.bytes().zip(b.bytes()).take_while(|(x, y)| x == y).count();
+    while !b.is_char_boundary(n) {
+        n -= 1;
     }
+    n
+}
+
+fn put_new_body(out: &mut Vec<u8>, prev: &mut Previous, b: &Body, units: Units) {
+    let [pu, du, au] = units.0;
+    let same_shape = prev.shape == Some((b.circle, b.size));
+    let same_group = prev.group == b.group;
+    out.push(
+        NEW | POS
+            | if b.d != [0, 0] { VEL } else { 0 }
+            | if b.a != [0, 0] { ACC } else { 0 }
+            | if b.collided { COLLIDED } else { 0 }
+            | if same_shape { SAME_SHAPE } else { 0 }
+            | if same_group { SAME_GROUP } else { 0 },
+    );
+    if !same_shape {
+        out.push(b.circle as u8);
+        out.extend_from_slice(&b.size[0].to_le_bytes());
+        out.extend_from_slice(&b.size[1].to_le_bytes());
+    }
+    let shared = shared_prefix(&prev.id, &b.id);
+    put_varint(out, shared as u64);
+    put_str(out, &b.id[shared..]);
+    if !same_group {
+        put_str(out, &b.group);
+    }
+    let p = b.p.map(|v| v / pu);
+    put_svarint(out, p[0].wrapping_sub(prev.p[0]));
+    put_svarint(out, p[1].wrapping_sub(prev.p[1]));
+    if b.d != [0, 0] {
+        put_svarint(out, b.d[0] / du);
+        put_svarint(out, b.d[1] / du);
+    }
+    if b.a != [0, 0] {
+        put_svarint(out, b.a[0] / au);
+        put_svarint(out, b.a[1] / au);
+    }
+    prev.id.clear();
+    prev.id.push_str(&b.id);
+    if !same_group {
+        prev.group.clear();
+        prev.group.push_str(&b.group);
+    }
+    prev.shape = Some((b.circle, b.size));
+    prev.p = p;
 }
 
 fn put_new_particle(out: &mut Vec<u8>, p: &Particle) {
@@ -103,7 +200,7 @@ fn put_all<T>(
     out: &mut Vec<u8>,
     items: &[T],
     key: impl Fn(&T) -> u32,
-    put: impl Fn(&mut Vec<u8>, &T),
+    mut put: impl FnMut(&mut Vec<u8>, &T),
 ) {
     let mut records = Records::with_capacity(items.len() * 32);
     for item in items {
@@ -112,28 +209,58 @@ fn put_all<T>(
     records.finish(out);
 }
 
+fn put_bodies(out: &mut Vec<u8>, bodies: &[Body], units: Units) {
+    let mut prev = Previous::default();
+    put_all(
+        out,
+        bodies,
+        |b| b.key,
+        |out, b| put_new_body(out, &mut prev, b, units),
+    );
+}
+
 /// Encodes the statics snapshot: every static body, as NEW records.
 pub fn encode_statics(frame: u64, time: f64, statics: &[BodyIn]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_BYTES + statics.len() * 40);
-    put_header(&mut out, KIND_STATICS, frame, time, &FrameStats::default());
+    put_header(
+        &mut out,
+        KIND_STATICS,
+        frame,
+        time,
+        0.0,
+        &FrameStats::default(),
+    );
     put_varint(&mut out, 0);
-    let mut bodies: Vec<Body> = statics.iter().map(body_of).collect();
+    let mut bodies: Vec<Body> = statics
+        .iter()
+        .map(|b| body_of(b, [0; 2], [0; 2], 0.0))
+        .collect();
     bodies.sort_by_key(|b| b.key);
-    put_all(&mut out, &bodies, |b| b.key, put_new_body);
+    put_bodies(&mut out, &bodies, COARSE);
     put_varint(&mut out, 0);
     out
+}
+
+/// The header of a frame, for [`FrameEncoder::resync_frame`].
+#[derive(Clone, Debug)]
+struct Last {
+    frame: u64,
+    time: f64,
+    dt: f64,
+    stats: FrameStats,
+    emitters: Vec<EmitterIn>,
 }
 
 /// Turns a world's states into frames, remembering what receivers were last told.
 #[derive(Clone, Debug)]
 pub struct FrameEncoder {
-    bodies: Vec<Body>,
+    bodies: Vec<Sent>,
     particles: Vec<Particle>,
     keyframe_interval: u64,
     since_key: u64,
     force_key: bool,
-    /// Header and emitters of the last frame encoded, for [`FrameEncoder::resync_frame`].
-    last: Option<(u64, f64, FrameStats, Vec<EmitterIn>)>,
+    /// Header and emitters of the last frame encoded.
+    last: Option<Last>,
 }
 
 impl FrameEncoder {
@@ -149,46 +276,62 @@ impl FrameEncoder {
         }
     }
 
-    /// A key frame of what receivers know after the last frame encoded: a late joiner
-    /// applies it, then the delta frames that follow it. `None` before the first frame.
+    /// A key frame of what receivers hold after the last frame encoded, exactly (its
+    /// bodies in [`FINE`] units): a late joiner applies it, then the delta frames that
+    /// follow it. `None` before the first frame.
     pub fn resync_frame(&self) -> Option<Vec<u8>> {
-        let (frame, time, stats, emitters) = self.last.as_ref()?;
+        let last = self.last.as_ref()?;
         let mut out =
             Vec::with_capacity(HEADER_BYTES + self.bodies.len() * 40 + self.particles.len() * 30);
-        put_header(&mut out, KIND_KEY, *frame, *time, stats);
-        put_emitters(&mut out, emitters);
-        put_all(&mut out, &self.bodies, |b| b.key, put_new_body);
+        put_header(
+            &mut out,
+            KIND_RESYNC,
+            last.frame,
+            last.time,
+            last.dt,
+            &last.stats,
+        );
+        put_emitters(&mut out, &last.emitters);
+        let bodies: Vec<Body> = self.bodies.iter().map(|s| s.body.clone()).collect();
+        put_bodies(&mut out, &bodies, EXACT);
         // A particle's birth record restated as of this frame.
         put_all(
             &mut out,
             &self.particles,
             |p| p.id,
-            |out, p| put_new_particle(out, &p.as_of(*frame)),
+            |out, p| put_new_particle(out, &p.as_of(last.frame)),
         );
         Some(out)
     }
 
-    /// The next frame will be a key frame (after a reset or a new scene).
+    /// The next frame will be a key frame, and what the encoder knew of the bodies'
+    /// motion is forgotten (after a reset or a new scene: the frames from there on are
+    /// the same whatever came before).
     pub fn force_key_frame(&mut self) {
         self.force_key = true;
+        self.bodies.clear();
     }
 
-    /// Encodes one frame. `bodies` are the dynamic bodies and `particles` the particles,
-    /// each in increasing key (id) order, as the engine keeps them.
+    /// Encodes one frame. `dt` is the time a frame stands for (the world's step);
+    /// `bodies` are the dynamic bodies and `particles` the particles, each in increasing
+    /// key (id) order, as the engine keeps them.
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &mut self,
         frame: u64,
         time: f64,
+        dt: f64,
         stats: &FrameStats,
         emitters: &[EmitterIn],
         bodies: &[BodyIn],
         particles: &ParticlesIn,
     ) -> Vec<u8> {
-        let key = self.force_key || self.since_key + 1 >= self.keyframe_interval;
+        // A new dt changes what a displacement per frame means: receivers start afresh.
+        let dt_changed = self.last.as_ref().is_some_and(|l| l.dt != dt);
+        let key = self.force_key || dt_changed || self.since_key + 1 >= self.keyframe_interval;
         if key {
             self.force_key = false;
             self.since_key = 0;
-            self.bodies.clear();
             self.particles.clear();
         } else {
             self.since_key += 1;
@@ -200,72 +343,127 @@ impl FrameEncoder {
             if key { KIND_KEY } else { KIND_DELTA },
             frame,
             time,
+            dt,
             stats,
         );
         put_emitters(&mut out, emitters);
-        self.encode_bodies(&mut out, bodies);
+        self.encode_bodies(&mut out, key, dt, bodies);
         self.encode_particles(&mut out, frame, particles);
-        self.last = Some((frame, time, *stats, emitters.to_vec()));
+        self.last = Some(Last {
+            frame,
+            time,
+            dt,
+            stats: *stats,
+            emitters: emitters.to_vec(),
+        });
         out
     }
 
-    fn encode_bodies(&mut self, out: &mut Vec<u8>, bodies: &[BodyIn]) {
-        let mut records = Records::with_capacity(bodies.len() * 4);
-        let sent = std::mem::take(&mut self.bodies);
-        // A body sent before is updated in place (its id and group strings kept): only a
-        // new body, or a different one under a reused key, allocates.
+    /// The bodies' section: in a key frame every body NEW, its state rounded to the
+    /// quanta; in a delta, a record for each body the prediction missed by more than half
+    /// a quantum (and for each new, changed or removed body). The truth about each body
+    /// (its last position, displacement and acceleration) is kept across key frames.
+    fn encode_bodies(&mut self, out: &mut Vec<u8>, key: bool, dt: f64, bodies: &[BodyIn]) {
+        let mut records = Records::with_capacity(bodies.len() * if key { 12 } else { 4 });
+        let mut prev = Previous::default();
+        let mut sent = std::mem::take(&mut self.bodies);
+        if key {
+            // A key frame states what is; receivers drop what it does not name.
+            sent.retain(|s| bodies.binary_search_by_key(&s.body.key, |b| b.key).is_ok());
+        }
         self.bodies = diff(
             sent,
             bodies.iter(),
             |b| b.key,
             &mut records,
             |records, old, now| {
+                let truth = fine(now.pos);
                 let size = [now.size[0] as f32, now.size[1] as f32];
-                match old {
-                    Some(mut old)
-                        if old.id == now.id
-                            && old.size == size
-                            && old.circle == now.circle
-                            && old.group == now.group =>
-                    {
-                        let qpos = [
-                            quantize(now.pos[0], POS_QUANTUM),
-                            quantize(now.pos[1], POS_QUANTUM),
-                        ];
-                        let qvel = [
-                            quantize(now.vel[0], VEL_QUANTUM),
-                            quantize(now.vel[1], VEL_QUANTUM),
-                        ];
-                        let moved = old.qpos != qpos;
-                        let sped = old.qvel != qvel;
-                        if moved || sped || old.collided != now.collided {
-                            let out = records.start(now.key);
-                            out.push(
-                                (moved as u8 * POS)
-                                    | (sped as u8 * VEL)
-                                    | (now.collided as u8 * COLLIDED),
-                            );
-                            if moved {
-                                put_svarint(out, qpos[0] - old.qpos[0]);
-                                put_svarint(out, qpos[1] - old.qpos[1]);
-                            }
-                            if sped {
-                                put_svarint(out, qvel[0] - old.qvel[0]);
-                                put_svarint(out, qvel[1] - old.qvel[1]);
-                            }
+                let same = old.filter(|old| {
+                    let b = &old.body;
+                    b.id == now.id
+                        && b.size == size
+                        && b.circle == now.circle
+                        && b.group == now.group
+                });
+                let Some(mut old) = same else {
+                    // New, or a different body under a reused key: sent whole, its
+                    // displacement from its velocity.
+                    let disp = fine(now.vel.map(|v| v * dt));
+                    let body = body_of(now, disp, [0; 2], dt);
+                    put_new_body(records.start(now.key), &mut prev, &body, COARSE);
+                    return Sent {
+                        body,
+                        truth,
+                        disp,
+                        accel: [0; 2],
+                    };
+                };
+                let disp = [
+                    truth[0].wrapping_sub(old.truth[0]),
+                    truth[1].wrapping_sub(old.truth[1]),
+                ];
+                let accel = [
+                    disp[0].wrapping_sub(old.disp[0]),
+                    disp[1].wrapping_sub(old.disp[1]),
+                ];
+                (old.truth, old.disp, old.accel) = (truth, disp, accel);
+                let b = &mut old.body;
+                b.dt = dt;
+                if key {
+                    let fresh = body_of(now, disp, accel, dt);
+                    (b.p, b.d, b.a, b.collided) = (fresh.p, fresh.d, fresh.a, fresh.collided);
+                    put_new_body(records.start(now.key), &mut prev, b, COARSE);
+                    return old;
+                }
+                let (p, d) = b.predicted();
+                let strayed = (0..2).any(|i| truth[i].wrapping_sub(p[i]).abs() > POS_TOLERANCE);
+                let rp: [i64; 2] = if strayed {
+                    std::array::from_fn(|i| steps(truth[i].wrapping_sub(p[i]), POS_STEP))
+                } else {
+                    [0; 2]
+                };
+                let off = |i: usize| disp[i].wrapping_sub(d[i]).abs() > DISP_TOLERANCE;
+                let moved = rp != [0, 0];
+                let record = moved || off(0) || off(1) || b.collided != now.collided;
+                // A record sets the displacement and its change to the truth's: to 0 at
+                // once for a body that holds still, else corrected by a quantum.
+                let still = disp.iter().all(|v| v.abs() <= DISP_STEP / 2);
+                let halt = record && still && (d != [0, 0] || b.a != [0, 0]);
+                let (rd, ra) = if record && !halt {
+                    (
+                        [0, 1].map(|i| steps(disp[i].wrapping_sub(d[i]), DISP_STEP)),
+                        [0, 1].map(|i| steps(accel[i].wrapping_sub(b.a[i]), ACC_STEP)),
+                    )
+                } else {
+                    ([0; 2], [0; 2])
+                };
+                let (sped, accelerated) = (rd != [0, 0], ra != [0, 0]);
+                if record {
+                    let out = records.start(now.key);
+                    out.push(
+                        (moved as u8 * POS)
+                            | (sped as u8 * VEL)
+                            | (accelerated as u8 * ACC)
+                            | (halt as u8 * HALT)
+                            | (now.collided as u8 * COLLIDED),
+                    );
+                    for (on, r) in [(moved, rp), (sped, rd), (accelerated, ra)] {
+                        if on {
+                            put_svarint(out, r[0]);
+                            put_svarint(out, r[1]);
                         }
-                        old.qpos = qpos;
-                        old.qvel = qvel;
-                        old.collided = now.collided;
-                        old
-                    }
-                    // New, or a different body under a reused key: sent whole.
-                    _ => {
-                        let body = body_of(now);
-                        put_new_body(records.start(now.key), &body);
-                        body
                     }
                 }
+                b.p = [0, 1].map(|i| p[i].wrapping_add(rp[i].wrapping_mul(POS_STEP)));
+                if halt {
+                    (b.d, b.a) = ([0; 2], [0; 2]);
+                } else {
+                    b.d = [0, 1].map(|i| d[i].wrapping_add(rd[i].wrapping_mul(DISP_STEP)));
+                    b.a = [0, 1].map(|i| b.a[i].wrapping_add(ra[i].wrapping_mul(ACC_STEP)));
+                }
+                b.collided = now.collided;
+                old
             },
         );
         records.finish(out);

@@ -11,37 +11,74 @@
 //! frames: they are in the snapshot, fetched with a query and re-published when they
 //! change.
 //!
-//! # Layout, version 2 (all numbers little-endian)
+//! # Layout, version 3 (all numbers little-endian)
 //!
 //! ```text
 //! magic      3 bytes  "RCF"
-//! version    u8       2
-//! kind       u8       0 delta, 1 key frame, 2 statics snapshot
+//! version    u8       3
+//! kind       u8       0 delta, 1 key frame, 2 statics snapshot, 3 resync key frame
 //! frame      u64      steps taken
 //! time       f64      simulated seconds
+//! dt         f64      seconds a frame stands for (the world's step)
 //! stats      12 x 4 bytes: step_ms f32, contacts u32, relaxation_iterations u32,
 //!                     deepest_penetration f32, kinetic_energy f32, particle_contacts u32,
 //!                     overruns u32, dynamic_bodies u32, particles u32, emitters u32,
-//!                     energy_change f32, residual f32 (version 2)
+//!                     energy_change f32, residual f32
 //! emitters   varint n, then n x (x f32, y f32, remaining varint)
 //! bodies     varint n, then n body records, in increasing key order
 //! particles  varint n, then n particle records, in increasing id order
 //! ```
 //!
 //! A varint is LEB128 (7 bits a byte, low first); a signed varint is zigzag-encoded first.
-//! Positions are sent as integers of [`POS_QUANTUM`] (bodies) or [`PARTICLE_QUANTUM`]
-//! (particles), velocities of [`VEL_QUANTUM`]; a record sends the change of those integers
-//! since the last record of the same body, so a body or particle that did not move by a
-//! quantum costs nothing.
+//!
+//! ## Bodies: predicted, corrected past a stated bound
+//!
+//! A receiver holds each dynamic body's state in integers of [`FINE`] units (2^-24): its
+//! position `p`, its displacement over the last frame `d` and that displacement's change
+//! per frame `a`. At every delta frame, before reading its records, a receiver moves every
+//! body it holds one frame on, axis by axis:
+//!
+//! ```text
+//! d <- d + a;  p <- p + d
+//! ```
+//!
+//! and a body record then corrects what the prediction missed. The server runs the same
+//! prediction on what receivers hold and sends a correction only when the body's true
+//! position is more than [`POS_BOUND`] away from it on an axis, or its true displacement
+//! more than [`DISP_BOUND`]: a receiver's position is within 1/2048 units of the server's,
+//! its displacement within 2^-12 units a frame, at every frame. A body falling
+//! freely, resting, or sliding at a steady deceleration needs no record at all. A
+//! receiver's velocity is `d / dt` (the displacement over the last frame: the body's
+//! velocity in a step that moved it by its velocity alone).
 //!
 //! Body record: `key gap` varint (key minus the previous record's key, the first from 0),
 //! `flags` u8, then by flag:
-//! - `NEW` (0x01): shape u8 (0 rect, 1 circle), width f32, height f32 (a circle: 2r, 2r),
-//!   id and group (varint length + UTF-8), position and velocity as absolute signed varints;
-//! - `POS` (0x02): position change, two signed varints;
-//! - `VEL` (0x04): velocity change, two signed varints;
+//! - `NEW` (0x01): the body whole. Unless `SAME_SHAPE` (0x40): shape u8 (0 rect,
+//!   1 circle), width f32, height f32 (a circle: 2r, 2r); else those of the previous NEW
+//!   record of the section. The id as the length of the prefix it shares with the previous
+//!   NEW record's id (varint), then the rest (varint length + UTF-8). Unless `SAME_GROUP`
+//!   (0x80): the group (varint length + UTF-8); else the previous NEW record's. Then `p` as
+//!   two signed varints, the change from the previous NEW record's `p` (from 0 for the
+//!   first); `d` if `VEL`, `a` if `ACC` (else 0), two signed varints each. In a key frame
+//!   and a snapshot these are in units of [`POS_QUANTUM`], [`DISP_QUANTUM`] and
+//!   [`ACC_QUANTUM`]; in a resync key frame (kind 3, the answer to the state query, which
+//!   restates what receivers hold mid-stream), in [`FINE`] units;
+//! - `POS` (0x02): a correction of `p`, two signed varints of [`POS_QUANTUM`];
+//! - `VEL` (0x04): a correction of `d`, two signed varints of [`DISP_QUANTUM`];
+//! - `ACC` (0x20): a correction of `a`, two signed varints of [`ACC_QUANTUM`];
+//! - `HALT` (0x40, in a record that is not NEW): the body holds still, `d` and `a` become 0;
+//!
+//! Corrections apply to the predicted state. A record the position or the displacement
+//! needs also corrects `d` and `a` towards the body's last displacement and its last
+//! change, so the prediction follows the body from there.
 //! - `COLLIDED` (0x08): the value of the collided flag (every record carries it);
 //! - `REMOVED` (0x10): the body is gone; nothing follows.
+//!
+//! ## Particles
+//!
+//! Positions of particles travel as integers of [`PARTICLE_QUANTUM`]; a record sends the
+//! change of those integers since the last record of the same particle, so a particle
+//! that did not move by a quantum costs nothing.
 //!
 //! Particle record: `id gap` varint, `flags` u8, then by flag:
 //! - `NEW` (0x01): position as absolute signed varints, start colour and final colour as
@@ -66,10 +103,30 @@ mod wire;
 pub use decode::{peek_header, FrameDecoder, Header};
 pub use encode::{encode_statics, FrameEncoder};
 
-/// Positions of bodies travel as integers of this many units (1/1024).
+/// A receiver holds bodies' positions, displacements and their changes in integers of
+/// this many units (2^-24).
+pub const FINE: f64 = 1.0 / 16_777_216.0;
+/// A correction of a body's position travels in integers of this many units (1/1024).
 pub const POS_QUANTUM: f64 = 1.0 / 1024.0;
-/// Velocities of bodies travel as integers of this many units per second (1/256).
-pub const VEL_QUANTUM: f64 = 1.0 / 256.0;
+/// A receiver's position is within this many units of the server's (1/2048), on each axis.
+pub const POS_BOUND: f64 = 1.0 / 2048.0;
+/// A correction of a body's displacement over a frame travels in integers of this many
+/// units (2^-14).
+pub const DISP_QUANTUM: f64 = 1.0 / 16384.0;
+/// A receiver's displacement over a frame is within this many units of the server's
+/// (2^-12; 0.015 units/s at 60 steps a second).
+pub const DISP_BOUND: f64 = 1.0 / 4096.0;
+/// A correction of the change of a body's displacement per frame travels in integers of
+/// this many units (2^-18).
+pub const ACC_QUANTUM: f64 = 1.0 / 262_144.0;
+/// [`POS_QUANTUM`], [`DISP_QUANTUM`] and [`ACC_QUANTUM`] in [`FINE`] units.
+const POS_STEP: i64 = 1 << 14;
+/// [`POS_BOUND`] in [`FINE`] units.
+const POS_TOLERANCE: i64 = 1 << 13;
+const DISP_STEP: i64 = 1 << 10;
+/// [`DISP_BOUND`] in [`FINE`] units.
+const DISP_TOLERANCE: i64 = 1 << 12;
+const ACC_STEP: i64 = 1 << 6;
 /// Positions of particles travel as integers of this many units (1/256).
 pub const PARTICLE_QUANTUM: f64 = 1.0 / 256.0;
 /// A colour component travels as `round(c * COLOR_SCALE)` in a byte: 0 to 4.
@@ -79,15 +136,21 @@ pub const MAGIC: &[u8; 3] = b"RCF";
 pub const KIND_DELTA: u8 = 0;
 pub const KIND_KEY: u8 = 1;
 pub const KIND_STATICS: u8 = 2;
+pub const KIND_RESYNC: u8 = 3;
 
 const NEW: u8 = 0x01;
 const POS: u8 = 0x02;
 const VEL: u8 = 0x04;
 const COLLIDED: u8 = 0x08;
 const REMOVED: u8 = 0x10;
+const ACC: u8 = 0x20;
+const SAME_SHAPE: u8 = 0x40;
+const SAME_GROUP: u8 = 0x80;
+/// In a record that is not NEW: the body holds still (`d` and `a` become 0).
+const HALT: u8 = 0x40;
 
 /// Header bytes before the sections.
-pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 48;
+pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 8 + 48;
 
 /// The figures of the step that produced a frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -158,24 +221,40 @@ pub struct Body {
     pub group: String,
     pub circle: bool,
     pub size: [f32; 2],
-    pub qpos: [i64; 2],
-    pub qvel: [i64; 2],
+    /// Position, in [`FINE`] units.
+    pub p: [i64; 2],
+    /// Displacement over the last frame, in [`FINE`] units.
+    pub d: [i64; 2],
+    /// Change of the displacement per frame, in [`FINE`] units.
+    pub a: [i64; 2],
+    /// Seconds a frame stands for (of the frame that last moved the body; 0 for a static).
+    pub dt: f64,
     pub collided: bool,
 }
 
 impl Body {
     pub fn pos(&self) -> [f64; 2] {
-        [
-            self.qpos[0] as f64 * POS_QUANTUM,
-            self.qpos[1] as f64 * POS_QUANTUM,
-        ]
+        self.p.map(|v| v as f64 * FINE)
     }
 
+    /// The displacement over the last frame over the frame's time, units per second.
     pub fn vel(&self) -> [f64; 2] {
-        [
-            self.qvel[0] as f64 * VEL_QUANTUM,
-            self.qvel[1] as f64 * VEL_QUANTUM,
-        ]
+        if self.dt > 0.0 {
+            self.d.map(|v| v as f64 * FINE / self.dt)
+        } else {
+            [0.0; 2]
+        }
+    }
+
+    /// One frame on, as every receiver moves a body without a record: `d += a; p += d`
+    /// (wrapping: a server keeps these near the body's true state, far from 64 bits).
+    fn predicted(&self) -> ([i64; 2], [i64; 2]) {
+        let d = [
+            self.d[0].wrapping_add(self.a[0]),
+            self.d[1].wrapping_add(self.a[1]),
+        ];
+        let p = [self.p[0].wrapping_add(d[0]), self.p[1].wrapping_add(d[1])];
+        (p, d)
     }
 }
 

@@ -153,25 +153,26 @@ pub(super) fn read<T: Keyed, P>(
 }
 
 /// Applies a section [`read`] checked to `held`: in place when it only changes items,
-/// else in one merge.
+/// else in one merge. Every item held that no record names gets `rest`.
 pub(super) fn fold<T: Keyed, P>(
     held: &mut Vec<T>,
     section: Section<T, P>,
     mut patch: impl FnMut(&mut T, P),
+    mut rest: impl FnMut(&mut T),
 ) {
     let Section {
         news,
         patches,
         removed,
     } = section;
+    let mut patches = patches.into_iter().peekable();
     if news.is_empty() && removed.is_empty() {
-        let mut at = 0;
-        for (key, p) in patches {
-            while held.get(at).is_some_and(|t| t.key() < key) {
-                at += 1;
-            }
-            if let Some(item) = held.get_mut(at).filter(|t| t.key() == key) {
-                patch(item, p);
+        for item in held.iter_mut() {
+            let key = item.key();
+            while patches.next_if(|&(k, _)| k < key).is_some() {}
+            match patches.next_if(|&(k, _)| k == key) {
+                Some((_, p)) => patch(item, p),
+                None => rest(item),
             }
         }
         return;
@@ -179,7 +180,6 @@ pub(super) fn fold<T: Keyed, P>(
     let mut out = Vec::with_capacity(held.len() + news.len());
     let mut news = news.into_iter().peekable();
     let mut removed = removed.into_iter().peekable();
-    let mut patches = patches.into_iter().peekable();
     for mut item in std::mem::take(held) {
         let key = item.key();
         while let Some(new) = news.next_if(|n| n.key() < key) {
@@ -195,8 +195,9 @@ pub(super) fn fold<T: Keyed, P>(
             continue;
         }
         while patches.next_if(|&(k, _)| k < key).is_some() {}
-        if let Some((_, p)) = patches.next_if(|&(k, _)| k == key) {
-            patch(&mut item, p);
+        match patches.next_if(|&(k, _)| k == key) {
+            Some((_, p)) => patch(&mut item, p),
+            None => rest(&mut item),
         }
         out.push(item);
     }

@@ -2,6 +2,9 @@
 
 use super::*;
 
+/// Seconds a frame stands for in these tests.
+const DT: f64 = 1.0 / 60.0;
+
 fn body(key: u32, id: &str, pos: [f64; 2]) -> BodyIn<'_> {
     BodyIn {
         key,
@@ -10,7 +13,7 @@ fn body(key: u32, id: &str, pos: [f64; 2]) -> BodyIn<'_> {
         circle: key.is_multiple_of(2),
         size: [2.0, 3.0],
         pos,
-        vel: [1.0, -2.0],
+        vel: [0.0, 0.0],
         collided: false,
     }
 }
@@ -67,14 +70,30 @@ fn deltas_rebuild_the_state_and_resting_things_cost_nothing() {
         body(1, "b", [5.0, 5.0]),
         body(4, "c", [9.0, 9.0]),
     ];
-    let f0 = enc.encode(0, 0.0, &FrameStats::default(), &[], &bodies, &cloud.view());
+    let f0 = enc.encode(
+        0,
+        0.0,
+        DT,
+        &FrameStats::default(),
+        &[],
+        &bodies,
+        &cloud.view(),
+    );
     assert_eq!(dec.apply(&f0).unwrap().kind, KIND_KEY);
     assert_eq!(dec.bodies.len(), 3);
     assert_eq!(dec.body("c").unwrap().pos(), [9.0, 9.0]);
     assert_eq!(dec.particles.len(), 2);
 
     // Nothing changes: a delta frame of the header and three empty sections.
-    let f1 = enc.encode(1, 0.1, &FrameStats::default(), &[], &bodies, &cloud.view());
+    let f1 = enc.encode(
+        1,
+        0.1,
+        DT,
+        &FrameStats::default(),
+        &[],
+        &bodies,
+        &cloud.view(),
+    );
     assert_eq!(f1.len(), HEADER_BYTES + 3);
     dec.apply(&f1).unwrap();
 
@@ -90,6 +109,7 @@ fn deltas_rebuild_the_state_and_resting_things_cost_nothing() {
     let f2 = enc.encode(
         2,
         0.2,
+        DT,
         &FrameStats::default(),
         &[EmitterIn {
             x: 1.0,
@@ -126,8 +146,16 @@ fn particle_colour_and_size_follow_from_the_birth_record() {
     cloud.push(1, 0.0, 0.0);
     cloud.life[0] = 6.0; // born 4 updates ago
     cloud.size[0] = 2.0;
-    dec.apply(&enc.encode(100, 0.0, &FrameStats::default(), &[], &[], &cloud.view()))
-        .unwrap();
+    dec.apply(&enc.encode(
+        100,
+        0.0,
+        DT,
+        &FrameStats::default(),
+        &[],
+        &[],
+        &cloud.view(),
+    ))
+    .unwrap();
     let p = &dec.particles[0];
     // Colour at frame 100 = start + delta * age(4); final = start + delta * 10.
     let c = p.color_at(100);
@@ -153,6 +181,7 @@ fn a_missed_frame_waits_for_the_next_key_frame() {
             enc.encode(
                 k,
                 0.0,
+                DT,
                 &FrameStats::default(),
                 &[],
                 &[body(0, "a", [k as f64, 0.0])],
@@ -198,6 +227,7 @@ fn a_late_joiner_resyncs_from_the_encoders_state_and_follows_the_deltas() {
         frames.push(enc.encode(
             k,
             k as f64,
+            DT,
             &FrameStats::default(),
             &[],
             &[body(0, "a", [k as f64, 1.0])],
@@ -215,6 +245,7 @@ fn a_late_joiner_resyncs_from_the_encoders_state_and_follows_the_deltas() {
     let next = enc.encode(
         10,
         10.0,
+        DT,
         &FrameStats::default(),
         &[],
         &[body(0, "a", [10.0, 1.0])],
@@ -251,6 +282,7 @@ fn garbage_is_refused_without_panicking() {
     let good = FrameEncoder::new(1).encode(
         0,
         0.0,
+        DT,
         &FrameStats::default(),
         &[],
         &[body(0, "a", [1.0, 1.0])],
@@ -284,14 +316,30 @@ fn a_delta_refused_at_its_end_changes_no_body_it_read_before() {
     let mut cloud = Cloud::default();
     cloud.push(3, 10.0, 20.0);
     let bodies = [body(0, "a", [1.0, 2.0]), body(1, "b", [5.0, 5.0])];
-    let f0 = enc.encode(0, 0.0, &FrameStats::default(), &[], &bodies, &cloud.view());
+    let f0 = enc.encode(
+        0,
+        0.0,
+        DT,
+        &FrameStats::default(),
+        &[],
+        &bodies,
+        &cloud.view(),
+    );
     dec.apply(&f0).unwrap();
     let moved = [body(0, "a", [1.5, 2.0]), body(1, "b", [5.0, 4.0])];
     let changed = [body(1, "b", [5.0, 4.0]), body(2, "new", [7.0, 7.0])];
     cloud.x[0] = 10.5;
     for (frame, now) in [(1, &moved[..]), (1, &changed[..])] {
         let mut enc = enc.clone();
-        let delta = enc.encode(frame, 0.1, &FrameStats::default(), &[], now, &cloud.view());
+        let delta = enc.encode(
+            frame,
+            0.1,
+            DT,
+            &FrameStats::default(),
+            &[],
+            now,
+            &cloud.view(),
+        );
         let before = (dec.bodies.clone(), dec.particles.clone(), dec.frame);
         assert!(dec.clone().apply(&delta).is_ok(), "the whole delta applies");
         assert!(dec.apply(&delta[..delta.len() - 1]).is_err());
@@ -300,4 +348,86 @@ fn a_delta_refused_at_its_end_changes_no_body_it_read_before() {
             before
         );
     }
+}
+
+/// A ball's truth at 60 frames a second: thrown up, falling, bouncing on a floor at 0
+/// with restitution 0.5, then sliding to rest (symplectic Euler, as the engine steps).
+fn thrown_ball(frames: u64) -> Vec<[f64; 2]> {
+    let (mut p, mut v) = ([0.0f64, 10.0], [3.0f64, 4.0]);
+    let mut out = vec![p];
+    for _ in 1..frames {
+        v[1] -= 9.8 * DT;
+        if p[1] == 0.0 && v[1] < 0.0 {
+            v[1] = 0.0;
+            v[0] = (v[0] - 2.0 * DT).max(0.0);
+        }
+        p = [p[0] + v[0] * DT, p[1] + v[1] * DT];
+        if p[1] < 0.0 {
+            p[1] = 0.0;
+            v[1] = if -v[1] * 0.5 < 0.5 { 0.0 } else { -v[1] * 0.5 };
+        }
+        out.push(p);
+    }
+    out
+}
+
+#[test]
+fn a_receiver_stays_within_the_stated_bound_and_free_flight_costs_next_to_nothing() {
+    let truth = thrown_ball(600);
+    let mut enc = FrameEncoder::new(10_000);
+    let mut dec = FrameDecoder::new();
+    let cloud = Cloud::default();
+    let mut with_record = Vec::new();
+    for (k, p) in truth.iter().enumerate() {
+        let mut b = body(0, "ball", *p);
+        b.vel = [3.0, 4.0];
+        let f = enc.encode(
+            k as u64,
+            k as f64 * DT,
+            DT,
+            &FrameStats::default(),
+            &[],
+            &[b],
+            &cloud.view(),
+        );
+        dec.apply(&f).unwrap();
+        // Header, the emitters' count, the bodies' count, the particles' count.
+        if f.len() > HEADER_BYTES + 3 {
+            with_record.push(k);
+        }
+        let got = dec.body("ball").unwrap();
+        for i in 0..2 {
+            let off = (got.pos()[i] - p[i]).abs();
+            assert!(off <= POS_BOUND + FINE, "frame {k}: position off by {off}");
+            if k > 0 {
+                let disp = p[i] - truth[k - 1][i];
+                let off = (got.vel()[i] * DT - disp).abs();
+                assert!(
+                    off <= DISP_BOUND + 2.0 * FINE,
+                    "frame {k}: displacement off by {off}"
+                );
+            }
+        }
+    }
+    // The first landing is near frame 114: before it, the ball flies freely.
+    let flying = with_record
+        .iter()
+        .filter(|&&k| (3..110).contains(&k))
+        .count();
+    assert!(flying <= 6, "records in free flight at {with_record:?}");
+    let still = (1..truth.len())
+        .rfind(|&k| truth[k] != truth[k - 1])
+        .unwrap()
+        + 1;
+    assert!(still < 560, "the ball rests from frame {still}");
+    let resting = with_record.iter().filter(|&&k| k > still + 1).count();
+    assert_eq!(
+        resting, 0,
+        "records at rest (from {still}) at {with_record:?}"
+    );
+    assert!(
+        with_record.len() < 60,
+        "{} frames of 600 carry a record",
+        with_record.len()
+    );
 }
