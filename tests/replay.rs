@@ -44,7 +44,7 @@ fn replayed_frames(server: &Server, client: &Client, log: &Path, until: u64) -> 
                     .iter()
                     .map(|b| (b.id.clone(), b.p, b.d, b.a, b.collided))
                     .collect();
-                let particles: Vec<_> = decoder.particles.iter().map(|p| (p.id, p.qpos)).collect();
+                let particles: Vec<_> = decoder.particles.iter().map(|p| (p.id, p.pos)).collect();
                 frames.push(format!("{} {:?} {:?}", decoder.frame, bodies, particles));
             }
         }

@@ -24,12 +24,38 @@ PROTOCOL_VERSION = 3
 FINE = 2.0 ** -24
 # Position, displacement and acceleration steps, in FINE units.
 POS_STEP, DISP_STEP, ACC_STEP = 1 << 14, 1 << 10, 1 << 6
-PARTICLE_QUANTUM = 1.0 / 256.0
+PARTICLE_QUANTUM = 1.0 / 1024.0
+PARTICLE_VEL_QUANTUM = 1.0 / 256.0
 COLOR_SCALE = 63.75
 KIND_DELTA, KIND_KEY, KIND_STATICS, KIND_RESYNC = 0, 1, 2, 3
 NEW, POS, VEL, COLLIDED, REMOVED, ACC, SAME_SHAPE, SAME_GROUP = 0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80
-HALT = 0x40  # in a record that is not NEW
+HALT = 0x40  # in a body record that is not NEW
+FROZEN, SAME_MOTION, SAME_LOOK = 0x20, 0x40, 0x80  # in a NEW particle record
+FREEZE_X, FREEZE_Y = 0x20, 0x40  # in a particle record that is not NEW
 I64 = 1 << 64
+
+
+_F32 = struct.Struct("<f")
+
+
+def f32(v):
+    """v rounded to the nearest f32, as Rust's `as f32` does; one f64 operation on f32
+    values rounded so is the f32 operation."""
+    try:
+        return _F32.unpack(_F32.pack(v))[0]
+    except OverflowError:
+        raise DecodeError(f"{v} is out of f32 range") from None
+
+
+def advance(p, dt):
+    """A particle one update on, as the engine moves it: v = (v + a dt) drag; p += v dt in
+    f32, on each axis not frozen."""
+    pos, vel = list(p["pos"]), list(p["vel"])
+    for i in range(2):
+        if not p["frozen"][i]:
+            vel[i] = f32(f32(vel[i] + f32(p["acc"][i] * dt)) * p["drag"])
+            pos[i] = f32(pos[i] + f32(vel[i] * dt))
+    return dict(p, pos=pos, vel=vel)
 
 
 def wrap(v):
@@ -165,7 +191,14 @@ class FrameDecoder:
                 if flags & HALT:
                     b["d"], b["a"] = [0, 0], [0, 0]
             bodies[key]["collided"] = bool(flags & COLLIDED)
-        particles = {} if kind != KIND_DELTA else dict(self.particles)
+        # Every particle moves on as the engine moves it (f32); a record corrects it.
+        dt32 = f32(dt)
+        particles = {}
+        if kind == KIND_DELTA:
+            for k, p in self.particles.items():
+                particles[k] = advance(p, dt32)
+        exact = kind == KIND_RESYNC
+        prev = {"q": [0, 0], "motion": None, "look": None}
         pid = 0
         for _ in range(r.varint()):
             pid += r.varint()
@@ -174,19 +207,44 @@ class FrameDecoder:
                 particles.pop(pid, None)
                 continue
             if flags & NEW:
-                qpos = [r.svarint(), r.svarint()]
-                c0 = list(r.take(4))
+                frozen = r.take(1)[0] if flags & FROZEN else 0
+                if exact:
+                    pos, vel = list(r.unpack("<ff")), list(r.unpack("<ff"))
+                else:
+                    prev["q"] = [wrap(prev["q"][0] + r.svarint()), wrap(prev["q"][1] + r.svarint())]
+                    pos = [f32(q * PARTICLE_QUANTUM) for q in prev["q"]]
+                    vel = [f32(r.svarint() * PARTICLE_VEL_QUANTUM) for _ in range(2)]
+                if flags & SAME_MOTION:
+                    if prev["motion"] is None:
+                        raise DecodeError(f"particle {pid}: no motion before")
+                else:
+                    prev["motion"] = r.unpack("<fff")
+                if flags & SAME_LOOK:
+                    if prev["look"] is None:
+                        raise DecodeError(f"particle {pid}: no look before")
+                else:
+                    prev["look"] = (list(r.take(4)), r.unpack("<f")[0])
+                ax, ay, drag = prev["motion"]
+                c0, factor = prev["look"]
                 c1 = list(r.take(4))
-                life0, life, size, factor = r.unpack("<ffff")
-                particles[pid] = {"qpos": qpos, "c0": c0, "c1": c1, "life0": life0, "life": life,
-                                  "size": size, "factor": factor, "at": frame}
+                (life0,) = r.unpack("<f")
+                age = r.varint()
+                (size,) = r.unpack("<f")
+                particles[pid] = {"pos": pos, "vel": vel, "acc": [ax, ay], "drag": drag,
+                                  "frozen": [bool(frozen & 1), bool(frozen & 2)], "c0": c0, "c1": c1,
+                                  "life0": life0, "life": f32(life0 - age), "size": size, "factor": factor,
+                                  "at": frame}
             else:
                 p = particles.get(pid)
                 if p is None:
                     raise DecodeError(f"update of unknown particle {pid}")
                 p = particles[pid] = dict(p)
                 if flags & POS:
-                    p["qpos"] = [p["qpos"][0] + r.svarint(), p["qpos"][1] + r.svarint()]
+                    p["pos"] = [f32(p["pos"][i] + r.svarint() * PARTICLE_QUANTUM) for i in range(2)]
+                if flags & VEL:
+                    p["vel"] = [f32(r.svarint() * PARTICLE_VEL_QUANTUM) for _ in range(2)]
+                    p["frozen"] = [False, False]
+                p["frozen"] = [p["frozen"][0] or bool(flags & FREEZE_X), p["frozen"][1] or bool(flags & FREEZE_Y)]
         if r.at != len(r.data):
             raise DecodeError(f"{len(r.data) - r.at} bytes left over")
         if kind == KIND_STATICS:
@@ -201,7 +259,7 @@ class FrameDecoder:
         age = p["life0"] - (p["life"] - elapsed)
         f = age / p["life0"] if p["life0"] else 0.0
         color = [a / COLOR_SCALE + (b - a) / COLOR_SCALE * f for a, b in zip(p["c0"], p["c1"])]
-        return {"x": p["qpos"][0] * PARTICLE_QUANTUM, "y": p["qpos"][1] * PARTICLE_QUANTUM,
+        return {"x": p["pos"][0], "y": p["pos"][1],
                 "size": p["size"] * p["factor"] ** elapsed, "color": color}
 
     def view(self):

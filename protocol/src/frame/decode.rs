@@ -6,9 +6,10 @@
 use super::records::{self, Change, Section};
 use super::wire::Reader;
 use super::{
-    Body, DecodeError, EmitterIn, FrameStats, Particle, ACC, ACC_STEP, COLLIDED, DISP_STEP, HALT,
-    KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, POS, POS_STEP, REMOVED, SAME_GROUP,
-    SAME_SHAPE, VEL,
+    Body, DecodeError, EmitterIn, FrameStats, Particle, ACC, ACC_STEP, COLLIDED, DISP_STEP,
+    FREEZE_X, FREEZE_Y, FROZEN, HALT, KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW,
+    PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS, POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK,
+    SAME_MOTION, SAME_SHAPE, VEL,
 };
 
 /// What a receiver knows of a world, kept up to date frame by frame.
@@ -134,7 +135,9 @@ impl FrameDecoder {
             } else {
                 Vec::new()
             },
+            header.kind,
             header.frame,
+            header.dt as f32,
         )?;
         if r.at != bytes.len() {
             return Err(DecodeError::Malformed(format!(
@@ -171,12 +174,6 @@ impl FrameDecoder {
     pub fn body(&self, id: &str) -> Option<&Body> {
         self.bodies.iter().chain(&self.statics).find(|b| b.id == id)
     }
-}
-
-/// Adds a change read off the wire to a quantised coordinate, refusing an overflow.
-fn add(q: i64, change: i64) -> Result<i64, DecodeError> {
-    q.checked_add(change)
-        .ok_or_else(|| DecodeError::Malformed("a coordinate overflows".into()))
 }
 
 /// A held body's state after a record, read and checked.
@@ -329,37 +326,115 @@ fn read_bodies(
     })
 }
 
+/// The previous NEW particle record of a section, which the next one is read against.
+#[derive(Default)]
+struct PreviousParticle {
+    q: [i64; 2],
+    motion: Option<([f32; 2], f32)>,
+    look: Option<([u8; 4], f32)>,
+}
+
+fn read_new_particle(
+    r: &mut Reader,
+    prev: &mut PreviousParticle,
+    id: u32,
+    flags: u8,
+    exact: bool,
+    frame: u64,
+) -> Result<Particle, DecodeError> {
+    let frozen = if flags & FROZEN != 0 { r.u8()? } else { 0 };
+    let (pos, vel) = if exact {
+        ([r.f32()?, r.f32()?], [r.f32()?, r.f32()?])
+    } else {
+        let step = [r.svarint()?, r.svarint()?];
+        let q = [
+            prev.q[0].wrapping_add(step[0]),
+            prev.q[1].wrapping_add(step[1]),
+        ];
+        prev.q = q;
+        let v = [r.svarint()?, r.svarint()?];
+        (
+            q.map(|q| (q as f64 * PARTICLE_QUANTUM) as f32),
+            v.map(|v| (v as f64 * PARTICLE_VEL_QUANTUM) as f32),
+        )
+    };
+    let (acc, drag) = if flags & SAME_MOTION != 0 {
+        prev.motion
+            .ok_or_else(|| DecodeError::Malformed(format!("particle {id}: no motion before")))?
+    } else {
+        let m = ([r.f32()?, r.f32()?], r.f32()?);
+        prev.motion = Some(m);
+        m
+    };
+    let (color0, size_delta) = if flags & SAME_LOOK != 0 {
+        prev.look
+            .ok_or_else(|| DecodeError::Malformed(format!("particle {id}: no look before")))?
+    } else {
+        let l = (r.bytes4()?, r.f32()?);
+        prev.look = Some(l);
+        l
+    };
+    let color1 = r.bytes4()?;
+    let initial_life = r.f32()?;
+    let age = r.varint()?;
+    let size = r.f32()?;
+    Ok(Particle {
+        id,
+        pos,
+        vel,
+        acc,
+        drag,
+        frozen: [frozen & 1 != 0, frozen & 2 != 0],
+        color0,
+        color1,
+        initial_life,
+        life: initial_life - age as f32,
+        size,
+        size_delta,
+        record_frame: frame,
+    })
+}
+
 fn read_particles(
     r: &mut Reader,
     held: Vec<Particle>,
+    kind: u8,
     frame: u64,
+    dt: f32,
 ) -> Result<Vec<Particle>, DecodeError> {
-    records::read_into_copy(r, held, |r, id, flags, existing| {
-        if flags & REMOVED != 0 {
-            return Ok(None);
-        }
-        if flags & NEW != 0 {
-            let qpos = [r.svarint()?, r.svarint()?];
-            let color0 = r.bytes4()?;
-            let color1 = r.bytes4()?;
-            let (initial_life, life, size, size_delta) = (r.f32()?, r.f32()?, r.f32()?, r.f32()?);
-            return Ok(Some(Particle {
-                id,
-                qpos,
-                color0,
-                color1,
-                initial_life,
-                life,
-                size,
-                size_delta,
-                record_frame: frame,
-            }));
-        }
-        let mut p = existing
-            .ok_or_else(|| DecodeError::Malformed(format!("update of unknown particle {id}")))?;
-        if flags & POS != 0 {
-            p.qpos = [add(p.qpos[0], r.svarint()?)?, add(p.qpos[1], r.svarint()?)?];
-        }
-        Ok(Some(p))
-    })
+    let mut prev = PreviousParticle::default();
+    let exact = kind == KIND_RESYNC;
+    records::read_into_copy(
+        r,
+        held,
+        |r, id, flags, existing| {
+            if flags & REMOVED != 0 {
+                return Ok(None);
+            }
+            if flags & NEW != 0 {
+                return Ok(Some(read_new_particle(
+                    r, &mut prev, id, flags, exact, frame,
+                )?));
+            }
+            let mut p = existing.ok_or_else(|| {
+                DecodeError::Malformed(format!("update of unknown particle {id}"))
+            })?;
+            p.advance(dt);
+            if flags & POS != 0 {
+                let q = [r.svarint()?, r.svarint()?];
+                for (pos, q) in p.pos.iter_mut().zip(q) {
+                    *pos = (*pos as f64 + q as f64 * PARTICLE_QUANTUM) as f32;
+                }
+            }
+            if flags & VEL != 0 {
+                let v = [r.svarint()?, r.svarint()?];
+                p.vel = v.map(|v| (v as f64 * PARTICLE_VEL_QUANTUM) as f32);
+                p.frozen = [false; 2];
+            }
+            p.frozen[0] |= flags & FREEZE_X != 0;
+            p.frozen[1] |= flags & FREEZE_Y != 0;
+            Ok(Some(p))
+        },
+        |p| p.advance(dt),
+    )
 }

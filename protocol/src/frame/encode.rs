@@ -6,9 +6,10 @@ use super::records::{diff, Keyed, Records};
 use super::wire::{put_str, put_svarint, put_varint};
 use super::{
     Body, BodyIn, EmitterIn, FrameStats, Particle, ParticlesIn, ACC, ACC_STEP, COLLIDED,
-    COLOR_SCALE, DISP_STEP, DISP_TOLERANCE, FINE, HALT, HEADER_BYTES, KIND_DELTA, KIND_KEY,
-    KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, POS, POS_STEP, POS_TOLERANCE,
-    SAME_GROUP, SAME_SHAPE, VEL,
+    COLOR_SCALE, DISP_STEP, DISP_TOLERANCE, FINE, FREEZE_X, FREEZE_Y, FROZEN, HALT, HEADER_BYTES,
+    KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM,
+    PARTICLE_VEL_QUANTUM, POS, POS_STEP, POS_TOLERANCE, SAME_GROUP, SAME_LOOK, SAME_MOTION,
+    SAME_SHAPE, VEL,
 };
 
 fn quantize(v: f64, quantum: f64) -> i64 {
@@ -175,16 +176,83 @@ fn put_new_body(out: &mut Vec<u8>, prev: &mut Previous, b: &Body, units: Units) 
     prev.p = p;
 }
 
-fn put_new_particle(out: &mut Vec<u8>, p: &Particle) {
-    out.push(NEW | POS);
-    put_svarint(out, p.qpos[0]);
-    put_svarint(out, p.qpos[1]);
-    out.extend_from_slice(&p.color0);
+/// The previous NEW particle record of a section, which the next one is written against.
+#[derive(Default)]
+struct PreviousParticle {
+    q: [i64; 2],
+    motion: Option<[u32; 3]>,
+    look: Option<([u8; 4], u32)>,
+}
+
+/// A particle's motion and look as compared between records: the bits of its floats.
+fn motion_of(p: &Particle) -> [u32; 3] {
+    [p.acc[0].to_bits(), p.acc[1].to_bits(), p.drag.to_bits()]
+}
+
+fn put_new_particle(out: &mut Vec<u8>, prev: &mut PreviousParticle, p: &Particle, exact: bool) {
+    let motion = motion_of(p);
+    let look = (p.color0, p.size_delta.to_bits());
+    let frozen = p.frozen[0] as u8 | (p.frozen[1] as u8) << 1;
+    let same_motion = prev.motion == Some(motion);
+    let same_look = prev.look == Some(look);
+    out.push(
+        NEW | if frozen != 0 { FROZEN } else { 0 }
+            | if same_motion { SAME_MOTION } else { 0 }
+            | if same_look { SAME_LOOK } else { 0 },
+    );
+    if frozen != 0 {
+        out.push(frozen);
+    }
+    if exact {
+        for v in p.pos.iter().chain(&p.vel) {
+            out.extend_from_slice(&v.to_bits().to_le_bytes());
+        }
+    } else {
+        let q = p.pos.map(|v| quantize(v as f64, PARTICLE_QUANTUM));
+        put_svarint(out, q[0].wrapping_sub(prev.q[0]));
+        put_svarint(out, q[1].wrapping_sub(prev.q[1]));
+        prev.q = q;
+        for v in p.vel {
+            put_svarint(out, quantize(v as f64, PARTICLE_VEL_QUANTUM));
+        }
+    }
+    if !same_motion {
+        for v in [p.acc[0], p.acc[1], p.drag] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        prev.motion = Some(motion);
+    }
+    if !same_look {
+        out.extend_from_slice(&p.color0);
+        out.extend_from_slice(&p.size_delta.to_le_bytes());
+        prev.look = Some(look);
+    }
     out.extend_from_slice(&p.color1);
-    for v in [p.initial_life, p.life, p.size, p.size_delta] {
-        out.extend_from_slice(&v.to_le_bytes());
+    out.extend_from_slice(&p.initial_life.to_le_bytes());
+    put_varint(out, (p.initial_life - p.life).max(0.0).round() as u64);
+    out.extend_from_slice(&p.size.to_le_bytes());
+}
+
+/// A value as receivers get it from `quantum` steps.
+fn dequantize(v: f32, quantum: f64) -> f32 {
+    (quantize(v as f64, quantum) as f64 * quantum) as f32
+}
+
+/// What receivers hold of a particle, beside its true position at the last frame.
+#[derive(Clone, Debug)]
+struct ParticleSent {
+    p: Particle,
+    truth: [f32; 2],
+}
+
+impl Keyed for ParticleSent {
+    fn key(&self) -> u32 {
+        self.p.id
     }
 }
+
+/// A true move smaller than this on an axis (units) holds a particle still on it.
+const HELD: f64 = PARTICLE_QUANTUM / 4.0;
 
 fn put_emitters(out: &mut Vec<u8>, emitters: &[EmitterIn]) {
     put_varint(out, emitters.len() as u64);
@@ -255,7 +323,7 @@ struct Last {
 #[derive(Clone, Debug)]
 pub struct FrameEncoder {
     bodies: Vec<Sent>,
-    particles: Vec<Particle>,
+    particles: Vec<ParticleSent>,
     keyframe_interval: u64,
     since_key: u64,
     force_key: bool,
@@ -294,12 +362,13 @@ impl FrameEncoder {
         put_emitters(&mut out, &last.emitters);
         let bodies: Vec<Body> = self.bodies.iter().map(|s| s.body.clone()).collect();
         put_bodies(&mut out, &bodies, EXACT);
-        // A particle's birth record restated as of this frame.
+        // Each particle as receivers hold it, its life and size as of this frame.
+        let mut prev = PreviousParticle::default();
         put_all(
             &mut out,
             &self.particles,
-            |p| p.id,
-            |out, p| put_new_particle(out, &p.as_of(last.frame)),
+            |s| s.p.id,
+            |out, s| put_new_particle(out, &mut prev, &s.p.as_of(last.frame), true),
         );
         Some(out)
     }
@@ -348,7 +417,7 @@ impl FrameEncoder {
         );
         put_emitters(&mut out, emitters);
         self.encode_bodies(&mut out, key, dt, bodies);
-        self.encode_particles(&mut out, frame, particles);
+        self.encode_particles(&mut out, frame, dt as f32, particles);
         self.last = Some(Last {
             frame,
             time,
@@ -469,9 +538,13 @@ impl FrameEncoder {
         records.finish(out);
     }
 
-    fn encode_particles(&mut self, out: &mut Vec<u8>, frame: u64, p: &ParticlesIn) {
+    /// The particles' section: NEW records for the born (and, in a key frame, for every
+    /// particle), REMOVED for the expired, and a record for each particle that the update
+    /// receivers run missed by more than [`PARTICLE_BOUND`](super::PARTICLE_BOUND).
+    fn encode_particles(&mut self, out: &mut Vec<u8>, frame: u64, dt: f32, p: &ParticlesIn) {
         let n = p.id.len();
-        let mut records = Records::with_capacity(n * 4);
+        let mut records = Records::with_capacity(n * 2);
+        let mut prev = PreviousParticle::default();
         let sent = std::mem::take(&mut self.particles);
         self.particles = diff(
             sent,
@@ -480,41 +553,65 @@ impl FrameEncoder {
             &mut records,
             |records, old, i| {
                 let id = p.id[i];
-                let qpos = [
-                    quantize(p.x[i] as f64, PARTICLE_QUANTUM),
-                    quantize(p.y[i] as f64, PARTICLE_QUANTUM),
-                ];
-                match old {
-                    Some(mut old) => {
-                        if old.qpos != qpos {
-                            let out = records.start(id);
-                            out.push(POS);
-                            put_svarint(out, qpos[0] - old.qpos[0]);
-                            put_svarint(out, qpos[1] - old.qpos[1]);
-                            old.qpos = qpos;
-                        }
-                        old
-                    }
-                    None => {
-                        let color0 = p.color[i];
-                        let life0 = p.initial_life[i];
-                        let color1: [f32; 4] =
-                            std::array::from_fn(|c| color0[c] + p.color_delta[i][c] * life0);
-                        let particle = Particle {
-                            id,
-                            qpos,
-                            color0: color0.map(color_byte),
-                            color1: color1.map(color_byte),
-                            initial_life: life0,
-                            life: p.life[i],
-                            size: p.size[i],
-                            size_delta: p.size_delta[i],
-                            record_frame: frame,
-                        };
-                        put_new_particle(records.start(id), &particle);
-                        particle
-                    }
+                let truth = [p.x[i], p.y[i]];
+                let Some(mut s) = old else {
+                    let color0 = p.color[i];
+                    let life0 = p.initial_life[i];
+                    let color1: [f32; 4] =
+                        std::array::from_fn(|c| color0[c] + p.color_delta[i][c] * life0);
+                    let particle = Particle {
+                        id,
+                        pos: truth.map(|v| dequantize(v, PARTICLE_QUANTUM)),
+                        vel: [p.vx[i], p.vy[i]].map(|v| dequantize(v, PARTICLE_VEL_QUANTUM)),
+                        acc: [p.ax[i], p.ay[i]],
+                        drag: p.drag[i],
+                        frozen: [false; 2],
+                        color0: color0.map(color_byte),
+                        color1: color1.map(color_byte),
+                        initial_life: life0,
+                        life: life0 - (life0 - p.life[i]).max(0.0).round(),
+                        size: p.size[i],
+                        size_delta: p.size_delta[i],
+                        record_frame: frame,
+                    };
+                    put_new_particle(records.start(id), &mut prev, &particle, false);
+                    return ParticleSent { p: particle, truth };
+                };
+                s.p.advance(dt);
+                let moved = [0, 1].map(|k| (truth[k] as f64 - s.truth[k] as f64).abs());
+                s.truth = truth;
+                let err = [0, 1].map(|k| truth[k] as f64 - s.p.pos[k] as f64);
+                if err.iter().all(|e| e.abs() <= super::PARTICLE_BOUND) {
+                    return s;
                 }
+                let r = err.map(|e| quantize(e, PARTICLE_QUANTUM));
+                let held = moved.map(|m| m <= HELD);
+                // A frozen axis the particle now moves on needs its velocity back.
+                let thaw = (0..2).any(|k| s.p.frozen[k] && !held[k]);
+                let freeze: [bool; 2] =
+                    std::array::from_fn(|k| held[k] && (thaw || !s.p.frozen[k]));
+                let out = records.start(id);
+                out.push(
+                    POS | if thaw { VEL } else { 0 }
+                        | if freeze[0] { FREEZE_X } else { 0 }
+                        | if freeze[1] { FREEZE_Y } else { 0 },
+                );
+                put_svarint(out, r[0]);
+                put_svarint(out, r[1]);
+                for (pos, r) in s.p.pos.iter_mut().zip(r) {
+                    *pos = (*pos as f64 + r as f64 * PARTICLE_QUANTUM) as f32;
+                }
+                if thaw {
+                    for (vel, v) in s.p.vel.iter_mut().zip([p.vx[i], p.vy[i]]) {
+                        put_svarint(out, quantize(v as f64, PARTICLE_VEL_QUANTUM));
+                        *vel = dequantize(v, PARTICLE_VEL_QUANTUM);
+                    }
+                    s.p.frozen = [false; 2];
+                }
+                for (frozen, freeze) in s.p.frozen.iter_mut().zip(freeze) {
+                    *frozen |= freeze;
+                }
+                s
             },
         );
         records.finish(out);

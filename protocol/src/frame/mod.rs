@@ -74,18 +74,38 @@
 //! - `COLLIDED` (0x08): the value of the collided flag (every record carries it);
 //! - `REMOVED` (0x10): the body is gone; nothing follows.
 //!
-//! ## Particles
+//! ## Particles: moved by every receiver as the engine moves them
 //!
-//! Positions of particles travel as integers of [`PARTICLE_QUANTUM`]; a record sends the
-//! change of those integers since the last record of the same particle, so a particle
-//! that did not move by a quantum costs nothing.
+//! A receiver holds each particle's position and velocity as f32, with its acceleration
+//! and drag, and at every delta frame, before reading its records, moves every particle it
+//! holds that is not frozen exactly as the engine does (f32 arithmetic, `dt` as f32):
+//!
+//! ```text
+//! v <- (v + a dt) drag;  p <- p + v dt
+//! ```
+//!
+//! The server runs the same update on what receivers hold and sends a correction only
+//! where a particle is more than [`PARTICLE_BOUND`] from it on an axis (a shape pushed it
+//! out): a receiver's particle is within 1/512 units of the server's at every frame. An
+//! axis on which a shape holds a particle still is frozen: receivers stop moving the
+//! particle on it until a record gives it a velocity again. Its colour and size at a later frame follow from its birth
+//! record (as the engine computes them) and are never sent again.
 //!
 //! Particle record: `id gap` varint, `flags` u8, then by flag:
-//! - `NEW` (0x01): position as absolute signed varints, start colour and final colour as
-//!   4 + 4 bytes (value x 63.75, so 0 to 4), initial life f32, life f32, size f32,
-//!   size factor f32. A particle's colour and size at a later frame follow from these (as
-//!   the engine computes them) and are never sent again;
-//! - `POS` (0x02): position change, two signed varints;
+//! - `NEW` (0x01): the particle whole: if `FROZEN` (0x20), a byte of the axes frozen
+//!   (bit 0 x, bit 1 y); position as two signed varints, the change from the previous NEW
+//!   record's (from 0 for the first); velocity as two signed varints; unless `SAME_MOTION` (0x40), acceleration x and y and drag as three
+//!   f32; unless `SAME_LOOK` (0x80), start colour as 4 bytes (value x 63.75, so 0 to 4) and
+//!   size factor f32 (else those of the previous NEW record); final colour as 4 bytes;
+//!   initial life f32; age varint (updates lived; its life is the initial life minus its
+//!   age); size f32. Position and velocity are in units of [`PARTICLE_QUANTUM`] and
+//!   [`PARTICLE_VEL_QUANTUM`], but in a resync key frame (kind 3) they are the f32 bits
+//!   (two u32 each) of what receivers hold;
+//! - `POS` (0x02): a correction of the position moved on, two signed varints of
+//!   [`PARTICLE_QUANTUM`];
+//! - `VEL` (0x04): the velocity, two signed varints of [`PARTICLE_VEL_QUANTUM`]; the
+//!   particle moves again on both axes;
+//! - `FREEZE_X` (0x20), `FREEZE_Y` (0x40): the particle is frozen on that axis (after `VEL`);
 //! - `REMOVED` (0x10): the particle expired.
 
 use std::fmt;
@@ -108,7 +128,8 @@ pub use encode::{encode_statics, FrameEncoder};
 pub const FINE: f64 = 1.0 / 16_777_216.0;
 /// A correction of a body's position travels in integers of this many units (1/1024).
 pub const POS_QUANTUM: f64 = 1.0 / 1024.0;
-/// A receiver's position is within this many units of the server's (1/2048), on each axis.
+/// A receiver's position is within this many units of the server's (1/2048), on each axis
+/// (and half a [`FINE`] unit, the grid it is held on).
 pub const POS_BOUND: f64 = 1.0 / 2048.0;
 /// A correction of a body's displacement over a frame travels in integers of this many
 /// units (2^-14).
@@ -127,8 +148,12 @@ const DISP_STEP: i64 = 1 << 10;
 /// [`DISP_BOUND`] in [`FINE`] units.
 const DISP_TOLERANCE: i64 = 1 << 12;
 const ACC_STEP: i64 = 1 << 6;
-/// Positions of particles travel as integers of this many units (1/256).
-pub const PARTICLE_QUANTUM: f64 = 1.0 / 256.0;
+/// Positions of particles travel as integers of this many units (1/1024).
+pub const PARTICLE_QUANTUM: f64 = 1.0 / 1024.0;
+/// A receiver's particle is within this many units of the server's (1/512), on each axis.
+pub const PARTICLE_BOUND: f64 = 1.0 / 512.0;
+/// Velocities of particles travel as integers of this many units per second (1/256).
+pub const PARTICLE_VEL_QUANTUM: f64 = 1.0 / 256.0;
 /// A colour component travels as `round(c * COLOR_SCALE)` in a byte: 0 to 4.
 pub const COLOR_SCALE: f32 = 63.75;
 
@@ -148,6 +173,15 @@ const SAME_SHAPE: u8 = 0x40;
 const SAME_GROUP: u8 = 0x80;
 /// In a record that is not NEW: the body holds still (`d` and `a` become 0).
 const HALT: u8 = 0x40;
+/// A NEW particle record carries the axes it is frozen on.
+const FROZEN: u8 = 0x20;
+/// In a particle record that is not NEW: frozen on x, on y.
+const FREEZE_X: u8 = 0x20;
+const FREEZE_Y: u8 = 0x40;
+/// A NEW particle moves as the previous NEW particle (acceleration and drag).
+const SAME_MOTION: u8 = 0x40;
+/// A NEW particle starts as the previous NEW particle looks (start colour, size factor).
+const SAME_LOOK: u8 = 0x80;
 
 /// Header bytes before the sections.
 pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 8 + 48;
@@ -195,6 +229,11 @@ pub struct ParticlesIn<'a> {
     pub id: &'a [u32],
     pub x: &'a [f32],
     pub y: &'a [f32],
+    pub vx: &'a [f32],
+    pub vy: &'a [f32],
+    pub ax: &'a [f32],
+    pub ay: &'a [f32],
+    pub drag: &'a [f32],
     pub life: &'a [f32],
     pub initial_life: &'a [f32],
     pub size: &'a [f32],
@@ -262,7 +301,13 @@ impl Body {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Particle {
     pub id: u32,
-    pub qpos: [i64; 2],
+    pub pos: [f32; 2],
+    pub vel: [f32; 2],
+    pub acc: [f32; 2],
+    pub drag: f32,
+    /// Axes on which a shape holds it still: not moved on them until a record gives it a
+    /// velocity.
+    pub frozen: [bool; 2],
     pub color0: [u8; 4],
     pub color1: [u8; 4],
     pub initial_life: f32,
@@ -277,10 +322,18 @@ pub struct Particle {
 
 impl Particle {
     pub fn pos(&self) -> [f32; 2] {
-        [
-            (self.qpos[0] as f64 * PARTICLE_QUANTUM) as f32,
-            (self.qpos[1] as f64 * PARTICLE_QUANTUM) as f32,
-        ]
+        self.pos
+    }
+
+    /// One update of its motion, as the engine's (`Particles::update`) and every
+    /// receiver's: `v = (v + a dt) drag; p += v dt` in f32, on each axis not frozen.
+    pub fn advance(&mut self, dt: f32) {
+        for i in 0..2 {
+            if !self.frozen[i] {
+                self.vel[i] = (self.vel[i] + self.acc[i] * dt) * self.drag;
+                self.pos[i] += self.vel[i] * dt;
+            }
+        }
     }
 
     /// Colour at `frame`, by the engine's model ([`color_after`]) from the colours of the

@@ -206,7 +206,7 @@ pub(super) fn fold<T: Keyed, P>(
 }
 
 /// Reads a section and folds it into `held`, a copy of what the receiver holds (by
-/// increasing key), in one pass: items without a record stay as they are; for each
+/// increasing key), in one pass: items without a record get `rest`; for each
 /// record `apply` gets the reader at its payload, the key, the flags and the held item of
 /// that key if any, and returns the item as it is now, or `None` when the record removed
 /// it. For items of plain data (particles), whose copy is one `memcpy`, this is faster
@@ -217,6 +217,7 @@ pub(super) fn read_into_copy<T: Keyed>(
     r: &mut Reader,
     held: Vec<T>,
     mut apply: impl FnMut(&mut Reader, u32, u8, Option<T>) -> Result<Option<T>, DecodeError>,
+    mut rest: impl FnMut(&mut T),
 ) -> Result<Vec<T>, DecodeError> {
     // A record is at least a key gap and a flags byte.
     let n = r.count(2)?;
@@ -229,7 +230,8 @@ pub(super) fn read_into_copy<T: Keyed>(
         key = key
             .checked_add(gap)
             .ok_or_else(|| DecodeError::Malformed("key overflow".into()))?;
-        while let Some(item) = old.next_if(|b| b.key() < key) {
+        while let Some(mut item) = old.next_if(|b| b.key() < key) {
+            rest(&mut item);
             out.push(item);
         }
         let existing = old.next_if(|b| b.key() == key);
@@ -238,6 +240,9 @@ pub(super) fn read_into_copy<T: Keyed>(
             out.push(item);
         }
     }
-    out.extend(old);
+    for mut item in old {
+        rest(&mut item);
+        out.push(item);
+    }
     Ok(out)
 }

@@ -23,6 +23,11 @@ struct Cloud {
     id: Vec<u32>,
     x: Vec<f32>,
     y: Vec<f32>,
+    vx: Vec<f32>,
+    vy: Vec<f32>,
+    ax: Vec<f32>,
+    ay: Vec<f32>,
+    drag: Vec<f32>,
     life: Vec<f32>,
     initial_life: Vec<f32>,
     size: Vec<f32>,
@@ -36,6 +41,11 @@ impl Cloud {
         self.id.push(id);
         self.x.push(x);
         self.y.push(y);
+        self.vx.push(0.0);
+        self.vy.push(0.0);
+        self.ax.push(0.0);
+        self.ay.push(0.0);
+        self.drag.push(1.0);
         self.life.push(10.0);
         self.initial_life.push(10.0);
         self.size.push(2.0);
@@ -48,6 +58,11 @@ impl Cloud {
             id: &self.id,
             x: &self.x,
             y: &self.y,
+            vx: &self.vx,
+            vy: &self.vy,
+            ax: &self.ax,
+            ay: &self.ay,
+            drag: &self.drag,
             life: &self.life,
             initial_life: &self.initial_life,
             size: &self.size,
@@ -254,7 +269,7 @@ fn a_late_joiner_resyncs_from_the_encoders_state_and_follows_the_deltas() {
     early.apply(&next).unwrap();
     late.apply(&next).unwrap();
     assert_eq!(late.bodies, early.bodies);
-    assert_eq!(late.particles[0].qpos, early.particles[0].qpos);
+    assert_eq!(late.particles[0].pos, early.particles[0].pos);
     assert_eq!(
         late.particles[0].color_at(10),
         early.particles[0].color_at(10)

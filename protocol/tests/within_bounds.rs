@@ -1,0 +1,79 @@
+//! What a receiver holds is the world's state within the bounds the frame layout states,
+//! at every frame of whole runs of the shipped demos: every dynamic body's position within
+//! `POS_BOUND` of the engine's (and half a `FINE` unit, the grid receivers hold it on), every particle's within `PARTICLE_BOUND`, and the same
+//! bodies and particles (by id) as the engine has. The receivers move bodies and particles
+//! themselves between the records (frame/mod.rs); this checks that the records the
+//! encoder sends are enough, against the engine's own state, frame by frame.
+
+use std::path::Path;
+
+use ricochet_engine::scene;
+use ricochet_protocol::frame::{FrameDecoder, FrameEncoder, FINE, PARTICLE_BOUND, POS_BOUND};
+use ricochet_protocol::world::encode_frame;
+
+fn root() -> &'static Path {
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+}
+
+/// Runs `scene_file` for `steps`, decoding every frame, and returns the worst distances
+/// seen (bodies, particles).
+fn worst(scene_file: &str, steps: u64) -> (f64, f64) {
+    let mut world = scene::load(&root().join("assets/scenes").join(scene_file)).unwrap();
+    let mut encoder = FrameEncoder::new(60);
+    let mut decoder = FrameDecoder::new();
+    let (mut body_off, mut particle_off) = (0.0f64, 0.0f64);
+    for k in 0..=steps {
+        if k > 0 {
+            world.step();
+        }
+        decoder
+            .apply(&encode_frame(&mut encoder, &world, 0.0, 0))
+            .unwrap();
+        let dynamic: Vec<_> = world
+            .bodies()
+            .iter()
+            .zip(world.infos())
+            .filter(|(b, _)| !b.is_static())
+            .collect();
+        assert_eq!(
+            decoder.bodies.len(),
+            dynamic.len(),
+            "{scene_file} frame {k}"
+        );
+        for (got, (b, info)) in decoder.bodies.iter().zip(&dynamic) {
+            assert_eq!(got.id, info.id);
+            for i in 0..2 {
+                body_off = body_off.max((got.pos()[i] - [b.pos.x, b.pos.y][i]).abs());
+            }
+        }
+        let p = world.particles();
+        assert_eq!(decoder.particles.len(), p.len(), "{scene_file} frame {k}");
+        for (j, got) in decoder.particles.iter().enumerate() {
+            assert_eq!(got.id, p.id[j]);
+            particle_off = particle_off
+                .max((got.pos[0] as f64 - p.x[j] as f64).abs())
+                .max((got.pos[1] as f64 - p.y[j] as f64).abs());
+        }
+    }
+    (body_off, particle_off)
+}
+
+#[test]
+fn receivers_hold_every_body_and_particle_within_the_stated_bounds() {
+    for (scene_file, steps) in [
+        ("emitters.toml", 600),
+        ("particles.toml", 600),
+        ("particles-10k.toml", 240),
+        ("suite/rain.toml", 300),
+    ] {
+        let (bodies, particles) = worst(scene_file, steps);
+        assert!(
+            bodies <= POS_BOUND + FINE / 2.0,
+            "{scene_file}: a body {bodies} units off"
+        );
+        assert!(
+            particles <= PARTICLE_BOUND + 1e-6,
+            "{scene_file}: a particle {particles} units off"
+        );
+    }
+}
