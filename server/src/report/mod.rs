@@ -19,6 +19,7 @@ pub mod soak;
 pub mod suite;
 pub mod table;
 pub mod tradeoff;
+pub mod wire;
 
 use std::path::Path;
 

@@ -260,6 +260,25 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: Option<PathBuf>,
     },
+    /// Bytes on the wire: run shipped scenes headless and encode every frame exactly as
+    /// `run` sends it; report each scene's bytes a frame (key frames and headers included)
+    /// per body or particle, and the bandwidth a viewer needs at 60 frames a second.
+    /// Prints a table; with --out, writes it between the wire markers of FILE
+    /// (docs/network.md).
+    Wire {
+        /// Steps of each scene.
+        #[arg(long, default_value_t = 600)]
+        steps: u64,
+        /// A key frame every this many frames, as `run` sends them.
+        #[arg(long, default_value_t = 60)]
+        keyframe_interval: u64,
+        /// Where the shipped scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Write the table between the wire markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
     /// Make the TLS certificates of a secured deployment (assets/zenoh/): a certificate
     /// authority and the router's certificate signed by it, as PEM files in DIR
     /// (ca.pem, ca-key.pem, router.pem, router-key.pem; keys readable by their owner

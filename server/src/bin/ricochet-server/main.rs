@@ -125,6 +125,21 @@ fn main() -> Result<()> {
             }
             Ok(())
         }
+        Command::Wire {
+            steps,
+            keyframe_interval,
+            scenes,
+            out,
+        } => {
+            let report = ricochet_server::report::wire::run(&scenes, steps, keyframe_interval)?;
+            let table = report.to_markdown();
+            println!("{table}");
+            if let Some(out) = out {
+                ricochet_server::report::splice(&out, "wire", &table)?;
+                eprintln!("wrote the table of {}", out.display());
+            }
+            Ok(())
+        }
         Command::Certs { out, hosts, days } => {
             for file in ricochet_server::certs::make(&out, &hosts, days)? {
                 eprintln!("wrote {}", file.display());

@@ -10,8 +10,8 @@ use anyhow::{Context, Result};
 use ricochet_engine::scene;
 use ricochet_engine::world::{Limits, World};
 use ricochet_protocol::command::{parse_input_log, Replay, TimedAction};
-use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
 use ricochet_protocol::world::{self as wire, write_frame};
+use ricochet_server::report::wire::WireStats;
 
 use crate::args::SimulateArgs;
 
@@ -145,71 +145,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         stats.kinetic_energy,
     );
     if let Some(w) = wire {
-        w.report();
+        eprintln!("{}", w.summary());
     }
     Ok(())
-}
-
-/// Bytes on the wire, frame by frame (`simulate --wire-stats`).
-struct WireStats {
-    encoder: FrameEncoder,
-    statics_bytes: usize,
-    frames: u64,
-    bytes: u64,
-    key_frames: (u64, u64),
-    body_frames: u64,
-    particle_frames: u64,
-}
-
-impl WireStats {
-    fn new(world: &World, keyframe_interval: u64) -> Self {
-        let mut w = WireStats {
-            encoder: FrameEncoder::new(keyframe_interval),
-            statics_bytes: wire::statics_snapshot(world).len(),
-            frames: 0,
-            bytes: 0,
-            key_frames: (0, 0),
-            body_frames: 0,
-            particle_frames: 0,
-        };
-        w.frame(world);
-        w
-    }
-
-    fn frame(&mut self, world: &World) {
-        let bytes = wire::encode_frame(&mut self.encoder, world, 0.0, 0);
-        let header = peek_header(&bytes).expect("own frames read back");
-        self.frames += 1;
-        self.bytes += bytes.len() as u64;
-        if header.kind == KIND_KEY {
-            self.key_frames.0 += 1;
-            self.key_frames.1 += bytes.len() as u64;
-        }
-        self.body_frames += header.stats.dynamic_bodies as u64;
-        self.particle_frames += header.stats.particles as u64;
-    }
-
-    fn report(&self) {
-        let per = |num: u64, den: u64| {
-            if den > 0 {
-                num as f64 / den as f64
-            } else {
-                0.0
-            }
-        };
-        let deltas = self.frames - self.key_frames.0;
-        let payload = self.bytes - self.frames * HEADER_BYTES as u64;
-        eprintln!(
-            "wire: {} frames, {:.1} bytes/frame on average ({:.1} in key frames, {:.1} in delta frames; {} of header each);              statics snapshot {} bytes once; {:.1} dynamic bodies and {:.1} particles a frame on average;              {:.3} bytes per body-or-particle a frame beyond the header",
-            self.frames,
-            per(self.bytes, self.frames),
-            per(self.key_frames.1, self.key_frames.0),
-            per(self.bytes - self.key_frames.1, deltas),
-            HEADER_BYTES,
-            self.statics_bytes,
-            per(self.body_frames, self.frames),
-            per(self.particle_frames, self.frames),
-            per(payload, self.body_frames + self.particle_frames),
-        );
-    }
 }

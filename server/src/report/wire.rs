@@ -1,0 +1,261 @@
+//! Bytes on the wire: shipped scenes run headless, every frame encoded exactly as `run`
+//! sends it (`ricochet-server wire`, docs/network.md; `simulate --wire-stats` for one
+//! scene).
+//!
+//! In: scenes, a number of steps, the key-frame interval. Out: per scene, the bytes of
+//! the frames over the whole run (key frames included) against the bodies and particles
+//! they carry, and the bandwidth a viewer needs at 60 frames a second.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use ricochet_engine::scene;
+use ricochet_engine::world::World;
+use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
+use ricochet_protocol::world as wire;
+
+/// The bytes of a run's frames, frame by frame.
+#[derive(Clone, Debug)]
+pub struct WireStats {
+    encoder: FrameEncoder,
+    pub statics_bytes: usize,
+    pub frames: u64,
+    pub bytes: u64,
+    /// Key frames and their bytes.
+    pub key_frames: (u64, u64),
+    /// Dynamic bodies and particles summed over the frames.
+    pub body_frames: u64,
+    pub particle_frames: u64,
+}
+
+impl WireStats {
+    /// Starts counting with the frame of `world` as it is (frame 0).
+    pub fn new(world: &World, keyframe_interval: u64) -> Self {
+        let mut w = WireStats {
+            encoder: FrameEncoder::new(keyframe_interval),
+            statics_bytes: wire::statics_snapshot(world).len(),
+            frames: 0,
+            bytes: 0,
+            key_frames: (0, 0),
+            body_frames: 0,
+            particle_frames: 0,
+        };
+        w.frame(world);
+        w
+    }
+
+    /// Counts the frame of `world` after its last step.
+    pub fn frame(&mut self, world: &World) {
+        let bytes = wire::encode_frame(&mut self.encoder, world, 0.0, 0);
+        let header = peek_header(&bytes).expect("own frames read back");
+        self.frames += 1;
+        self.bytes += bytes.len() as u64;
+        if header.kind == KIND_KEY {
+            self.key_frames.0 += 1;
+            self.key_frames.1 += bytes.len() as u64;
+        }
+        self.body_frames += header.stats.dynamic_bodies as u64;
+        self.particle_frames += header.stats.particles as u64;
+    }
+
+    pub fn bytes_per_frame(&self) -> f64 {
+        per(self.bytes, self.frames)
+    }
+
+    pub fn key_frame_bytes(&self) -> f64 {
+        per(self.key_frames.1, self.key_frames.0)
+    }
+
+    pub fn delta_frame_bytes(&self) -> f64 {
+        per(
+            self.bytes - self.key_frames.1,
+            self.frames - self.key_frames.0,
+        )
+    }
+
+    /// Bodies and particles a frame, on average.
+    pub fn things_per_frame(&self) -> f64 {
+        per(self.body_frames + self.particle_frames, self.frames)
+    }
+
+    /// Every byte of every frame, header included, per body or particle per frame.
+    pub fn bytes_per_thing(&self) -> f64 {
+        per(self.bytes, self.body_frames + self.particle_frames)
+    }
+
+    /// One line for `simulate --wire-stats`.
+    pub fn summary(&self) -> String {
+        format!(
+            "wire: {} frames, {:.1} bytes/frame on average ({:.1} in key frames, {:.1} in delta \
+             frames; {} of header each); statics snapshot {} bytes once; {:.1} dynamic bodies \
+             and {:.1} particles a frame on average; {:.3} bytes per body-or-particle a frame, \
+             headers and key frames included",
+            self.frames,
+            self.bytes_per_frame(),
+            self.key_frame_bytes(),
+            self.delta_frame_bytes(),
+            HEADER_BYTES,
+            self.statics_bytes,
+            per(self.body_frames, self.frames),
+            per(self.particle_frames, self.frames),
+            self.bytes_per_thing(),
+        )
+    }
+}
+
+fn per(num: u64, den: u64) -> f64 {
+    if den > 0 {
+        num as f64 / den as f64
+    } else {
+        0.0
+    }
+}
+
+/// A scene of the report: its file under the scenes directory, what moves in it, and the
+/// goal its figure is held to (issue's wording), if any.
+struct Case {
+    file: &'static str,
+    what: &'static str,
+    goal: Option<(f64, &'static str)>,
+}
+
+const CASES: &[Case] = &[
+    Case {
+        file: "bounds.toml",
+        what: "5 bodies, nothing moves",
+        goal: None,
+    },
+    Case {
+        file: "impulse.toml",
+        what: "hero at rest, 4 patrolling minions",
+        goal: None,
+    },
+    Case {
+        file: "emitters.toml",
+        what: "minions, an explosion burning",
+        goal: None,
+    },
+    Case {
+        file: "pyramid-10.toml",
+        what: "55 boxes settling",
+        goal: None,
+    },
+    Case {
+        file: "pyramid-100.toml",
+        what: "5050 boxes at rest",
+        goal: Some((0.2, "at rest")),
+    },
+    Case {
+        file: "suite/rain.toml",
+        what: "1200 bodies falling and piling up",
+        goal: Some((1.0, "falling and piling up")),
+    },
+    Case {
+        file: "particles-idle-10k.toml",
+        what: "10 000 embers, still after emission",
+        goal: None,
+    },
+    Case {
+        file: "particles-10k.toml",
+        what: "10 000 fire particles",
+        goal: None,
+    },
+    Case {
+        file: "particles-100k.toml",
+        what: "100 000 fire particles onto a floor",
+        goal: Some((0.5, "particles")),
+    },
+];
+
+/// One scene's figures.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub file: &'static str,
+    pub what: &'static str,
+    pub goal: Option<(f64, &'static str)>,
+    pub stats: WireStats,
+}
+
+/// The figures of every scene.
+#[derive(Clone, Debug)]
+pub struct WireReport {
+    pub steps: u64,
+    pub keyframe_interval: u64,
+    pub rows: Vec<Row>,
+}
+
+/// Runs each scene of the report for `steps` steps.
+pub fn run(scenes: &Path, steps: u64, keyframe_interval: u64) -> Result<WireReport> {
+    let mut rows = Vec::new();
+    for case in CASES {
+        let path = scenes.join(case.file);
+        let mut world =
+            scene::load(&path).with_context(|| format!("loading {}", path.display()))?;
+        let mut stats = WireStats::new(&world, keyframe_interval);
+        for _ in 0..steps {
+            world.step();
+            stats.frame(&world);
+        }
+        rows.push(Row {
+            file: case.file,
+            what: case.what,
+            goal: case.goal,
+            stats,
+        });
+    }
+    Ok(WireReport {
+        steps,
+        keyframe_interval,
+        rows,
+    })
+}
+
+impl WireReport {
+    /// The table, with the command that made it.
+    pub fn to_markdown(&self) -> String {
+        let mut out = format!(
+            "Measured by `{}` ({} steps of each scene from its start, a key frame every {} \
+             frames, every byte of every frame counted, headers and key frames included):\n\n",
+            super::command_line(),
+            self.steps,
+            self.keyframe_interval
+        );
+        out.push_str(
+            "| scene | what moves | bodies and particles a frame | bytes a frame | key frame | \
+             delta frame | bytes per body or particle a frame | at 60 frames/s | goal |\n\
+             |---|---|---:|---:|---:|---:|---:|---:|---|\n",
+        );
+        for r in &self.rows {
+            let s = &r.stats;
+            let per = s.bytes_per_thing();
+            let goal = match r.goal {
+                Some((at_most, what)) => format!(
+                    "{what}: at most {at_most} B, {}",
+                    if per <= at_most { "met" } else { "**not met**" }
+                ),
+                None => String::new(),
+            };
+            out.push_str(&format!(
+                "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.3} | {} | {goal} |\n",
+                r.file,
+                r.what,
+                s.things_per_frame(),
+                s.bytes_per_frame(),
+                s.key_frame_bytes(),
+                s.delta_frame_bytes(),
+                per,
+                rate(s.bytes_per_frame() * 60.0 * 8.0),
+            ));
+        }
+        out
+    }
+}
+
+/// Bits per second, in the unit that reads best.
+fn rate(bits: f64) -> String {
+    if bits >= 1e6 {
+        format!("{:.1} Mbit/s", bits / 1e6)
+    } else {
+        format!("{:.0} kbit/s", bits / 1e3)
+    }
+}

@@ -1,0 +1,51 @@
+//! `ricochet-server wire` runs the shipped scenes, encodes their frames as `run` sends
+//! them, and writes its table between the markers of a page, leaving the rest as it was.
+
+mod common;
+
+use std::process::Command as Process;
+
+use common::*;
+
+#[test]
+fn the_wire_report_writes_its_table_between_the_markers() {
+    let dir = temp_dir();
+    let page = dir.path().join("page.md");
+    std::fs::write(
+        &page,
+        "before\n<!-- wire:begin -->\nold\n<!-- wire:end -->\nafter\n",
+    )
+    .unwrap();
+    let out = Process::new(bin("ricochet-server"))
+        .args(["wire", "--steps", "30", "--scenes", &scene("")])
+        .arg("--out")
+        .arg(&page)
+        .output()
+        .unwrap();
+    ok(&out);
+    let text = std::fs::read_to_string(&page).unwrap();
+    assert!(
+        text.starts_with("before\n<!-- wire:begin -->\nMeasured by `ricochet-server wire"),
+        "{text}"
+    );
+    assert!(
+        text.ends_with("<!-- wire:end -->\nafter\n") && !text.contains("old"),
+        "{text}"
+    );
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .filter(|l| l.starts_with("| ") && l.contains(".toml"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 9, "{text}");
+    for row in &rows {
+        // Bodies and particles a frame, then bytes a frame: a resting world still sends
+        // its header.
+        let bytes: f64 = row[4].parse().unwrap();
+        assert!(bytes >= 77.0, "{row:?}");
+        let per: f64 = row[7].parse().unwrap();
+        assert!(per > 0.0 && per.is_finite(), "{row:?}");
+    }
+    let pyramid = rows.iter().find(|r| r[1] == "pyramid-100.toml").unwrap();
+    assert_eq!(pyramid[3], "5050", "{pyramid:?}");
+}
