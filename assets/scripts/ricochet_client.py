@@ -21,6 +21,7 @@ import time
 import uuid
 
 PROTOCOL_VERSION = 3
+MAX_STEPS_A_FRAME = 64
 FINE = 2.0 ** -24
 # Position, displacement and acceleration steps, in FINE units.
 POS_STEP, DISP_STEP, ACC_STEP = 1 << 14, 1 << 10, 1 << 6
@@ -128,13 +129,20 @@ class FrameDecoder:
             raise DecodeError(f"frame version {version}, this reader knows {PROTOCOL_VERSION}")
         if kind > KIND_RESYNC:
             raise DecodeError(f"unknown kind {kind}")
-        frame, t, dt = r.unpack("<Qdd")
+        frame, prev_frame, t, dt = r.unpack("<QQdd")
+        if prev_frame > frame:
+            raise DecodeError(f"frame {frame} follows frame {prev_frame}")
         stats = dict(zip(STATS, r.unpack(STATS_FORMAT)))
         if kind == KIND_DELTA and self.synced and frame <= self.frame:
             raise DecodeError(f"frame {frame} is older than the state held")
-        if kind == KIND_DELTA and not (self.synced and frame == self.frame + 1):
+        if kind == KIND_DELTA and not (self.synced and prev_frame == self.frame):
             self.synced = False
-            raise DecodeError(f"delta frame {frame} does not follow {self.frame}")
+            raise DecodeError(f"a delta frame follows frame {prev_frame}, this reader holds {self.frame}")
+        # Steps since the frame before: what particles move by, what a displacement spans.
+        steps = frame - prev_frame
+        if kind == KIND_DELTA and not 1 <= steps <= MAX_STEPS_A_FRAME:
+            raise DecodeError(f"{steps} steps from frame {prev_frame} to {frame}")
+        frame_dt = dt * max(steps, 1)
         emitters = []
         for _ in range(r.varint()):
             x, y = r.unpack("<ff")
@@ -145,7 +153,7 @@ class FrameDecoder:
         if kind == KIND_DELTA:
             for k, b in bodies.items():
                 d = [wrap(b["d"][i] + b["a"][i]) for i in range(2)]
-                bodies[k] = dict(b, d=d, p=[wrap(b["p"][i] + d[i]) for i in range(2)], dt=dt)
+                bodies[k] = dict(b, d=d, p=[wrap(b["p"][i] + d[i]) for i in range(2)], dt=frame_dt)
         units = (1, 1, 1) if kind == KIND_RESYNC else (POS_STEP, DISP_STEP, ACC_STEP)
         prev = {"id": "", "group": "", "shape": None, "p": [0, 0]}
         key = 0
@@ -176,7 +184,7 @@ class FrameDecoder:
                 a = [wrap(r.svarint() * units[2]), wrap(r.svarint() * units[2])] if flags & ACC else [0, 0]
                 prev = {"id": ident, "group": group, "shape": (circle, size), "p": pu}
                 bodies[key] = {"id": ident, "group": group, "circle": circle, "size": size,
-                               "p": [wrap(v * units[0]) for v in pu], "d": d, "a": a, "dt": dt}
+                               "p": [wrap(v * units[0]) for v in pu], "d": d, "a": a, "dt": frame_dt}
             else:
                 b = bodies.get(key)
                 if b is None:
@@ -196,7 +204,9 @@ class FrameDecoder:
         particles = {}
         if kind == KIND_DELTA:
             for k, p in self.particles.items():
-                particles[k] = advance(p, dt32)
+                for _ in range(steps):
+                    p = advance(p, dt32)
+                particles[k] = p
         exact = kind == KIND_RESYNC
         prev = {"q": [0, 0], "motion": None, "look": None}
         pid = 0

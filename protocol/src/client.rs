@@ -187,6 +187,8 @@ pub struct Client {
     /// Numbers this client's commands (zenoh's source sequence number) and requests
     /// (their id).
     sequence: AtomicU32,
+    /// The frame stream this client watches: one frame in this many steps.
+    every: u64,
 }
 
 impl Client {
@@ -215,7 +217,29 @@ impl Client {
             commands,
             trust,
             sequence: AtomicU32::new(0),
+            every: 1,
         })
+    }
+
+    /// Watches the stream of one frame in `every` steps (1, the default: every step; the
+    /// server's streams are `keys::STREAMS`): `frames`, `state`, `join` and `catch_up`
+    /// follow it.
+    pub fn watch_every(&mut self, every: u64) {
+        self.every = every;
+    }
+
+    /// The stream this client watches.
+    pub fn every(&self) -> u64 {
+        self.every
+    }
+
+    /// Watches the fullest stream whose rate fits `bits_per_second`, by the server's
+    /// info; returns the steps a frame of it stands for.
+    pub fn watch_within(&mut self, bits_per_second: f64, timeout: Duration) -> Result<u64> {
+        let info = self.info(timeout)?;
+        let every = info.stream_for(bits_per_second);
+        self.every = every;
+        Ok(every)
     }
 
     pub fn session(&self) -> &Session {
@@ -436,7 +460,7 @@ impl Client {
 
     /// The latest `capacity` frames: for viewers, which must never hold anything back.
     pub fn latest_frames(&self, capacity: usize) -> Result<FrameStream> {
-        self.subscribe(&self.keys.frame, capacity)
+        self.subscribe(&self.keys.frame_every(self.every), capacity)
     }
 
     fn subscribe(&self, key: &str, capacity: usize) -> Result<FrameStream> {
@@ -471,7 +495,7 @@ impl Client {
     /// Fetches a key frame of the dynamic state now: a late joiner applies it, then the
     /// frames that follow it, instead of waiting for the next key frame.
     pub fn state(&self, timeout: Duration) -> Result<Vec<u8>> {
-        self.fetch(&self.keys.state, timeout)
+        self.fetch(&self.keys.state_every(self.every), timeout)
     }
 
     /// The world's scene name, bounds, step and groups.
@@ -489,15 +513,20 @@ impl Client {
     }
 
     /// A decoder brought up to date from scratch: statics from the snapshot, dynamic state
-    /// from a resync key frame (for a late joiner, or after the server changed).
+    /// from a resync key frame (for a late joiner, or after the server changed). On a
+    /// reduced-rate stream (`watch_every`), meant for slow links, the state (all of the
+    /// world's particles at once) is not asked for: the decoder is whole at the stream's
+    /// next key frame, which the server sends when a stream gains its first watcher.
     pub fn catch_up(&self, timeout: Duration) -> Result<crate::frame::FrameDecoder> {
         let mut decoder = crate::frame::FrameDecoder::new();
         decoder
             .apply(&self.snapshot(timeout)?)
             .map_err(|e| anyhow!("snapshot: {e}"))?;
-        decoder
-            .apply(&self.state(timeout)?)
-            .map_err(|e| anyhow!("state: {e}"))?;
+        if self.every == 1 {
+            decoder
+                .apply(&self.state(timeout)?)
+                .map_err(|e| anyhow!("state: {e}"))?;
+        }
         Ok(decoder)
     }
 

@@ -267,6 +267,33 @@ pub struct WorldInfo {
     /// without a target).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accuracy: Option<String>,
+    /// The frame streams and the bytes each sent over the last whole second.
+    #[serde(default)]
+    pub streams: Vec<StreamRate>,
+}
+
+/// A frame stream's rate.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StreamRate {
+    /// Steps a frame of the stream stands for (1: every step).
+    pub every: u64,
+    /// Bytes the stream's frames took over the last whole second.
+    pub bytes_per_second: f64,
+}
+
+impl WorldInfo {
+    /// The fullest stream whose measured rate fits `bits_per_second`: the stream that
+    /// carries every step when it fits, else the tier of fewest steps a frame that does;
+    /// the sparsest when none fits.
+    pub fn stream_for(&self, bits_per_second: f64) -> u64 {
+        let mut streams: Vec<&StreamRate> = self.streams.iter().collect();
+        streams.sort_by_key(|s| s.every);
+        streams
+            .iter()
+            .find(|s| s.bytes_per_second * 8.0 <= bits_per_second)
+            .or(streams.last())
+            .map_or(1, |s| s.every)
+    }
 }
 
 /// A server's counts since it started (the `health` of [`WorldInfo`]).

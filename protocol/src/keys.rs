@@ -22,6 +22,10 @@ pub const ROOT: &str = "ricochet";
 /// The world a server hosts when none is named.
 pub const DEFAULT_WORLD: &str = "default";
 
+/// The frame streams a server publishes, by the steps a frame of each stands for: every
+/// step, and reduced-rate tiers for viewers whose link cannot carry every step.
+pub const STREAMS: [u64; 4] = [1, 2, 4, 8];
+
 /// Checks a world name.
 pub fn check_world(name: &str) -> Result<(), String> {
     if name.is_empty() || name.len() > 64 {
@@ -68,6 +72,23 @@ impl WorldKeys {
             event: k("event"),
             alive: k("alive"),
         })
+    }
+
+    /// The frames of the stream that carries one step in `every` (`frame` for every
+    /// step, `frame/<every>` for a reduced-rate tier).
+    pub fn frame_every(&self, every: u64) -> String {
+        match every {
+            1 => self.frame.clone(),
+            n => format!("{}/{n}", self.frame),
+        }
+    }
+
+    /// The state query of that stream: a key frame of what its receivers hold.
+    pub fn state_every(&self, every: u64) -> String {
+        match every {
+            1 => self.state.clone(),
+            n => format!("{}/{n}", self.state),
+        }
     }
 
     /// The liveliness token a server with zenoh id `zid` declares for this world.

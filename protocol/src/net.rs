@@ -317,3 +317,44 @@ mod tests {
         assert!(e.to_string().contains("z.json5"), "{e}");
     }
 }
+
+/// A link's rate in bits a second, from `5000000`, `5M`, `5Mbit`, `500k`, `500kbit`,
+/// `1.5G` (k, M and G are powers of 1000; a trailing `bit`, `bps` or `b/s` is allowed).
+pub fn parse_bits_per_second(text: &str) -> Result<f64, String> {
+    let t = text.trim();
+    let t = ["bit/s", "bps", "b/s", "bit"]
+        .iter()
+        .find_map(|unit| t.strip_suffix(unit))
+        .unwrap_or(t);
+    let (number, scale) = match t.chars().last() {
+        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
+        Some('M') => (&t[..t.len() - 1], 1e6),
+        Some('G') => (&t[..t.len() - 1], 1e9),
+        _ => (t, 1.0),
+    };
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v * scale),
+        _ => Err(format!(
+            "`{}` is not a rate: give bits a second, as 5000000, 5M, 5Mbit or 500kbit",
+            ricochet_engine::world::short(text, 40)
+        )),
+    }
+}
+
+#[cfg(test)]
+mod rate_tests {
+    use super::parse_bits_per_second as parse;
+
+    #[test]
+    fn rates_read_with_their_units() {
+        assert_eq!(parse("5000000"), Ok(5e6));
+        assert_eq!(parse("5M"), Ok(5e6));
+        assert_eq!(parse("5Mbit"), Ok(5e6));
+        assert_eq!(parse("500kbit"), Ok(5e5));
+        assert_eq!(parse("1.5G"), Ok(1.5e9));
+        assert_eq!(parse("2 Mbps"), Ok(2e6));
+        for bad in ["", "fast", "-5M", "0", "NaNM", "5T"] {
+            assert!(parse(bad).is_err(), "{bad}");
+        }
+    }
+}

@@ -87,6 +87,54 @@ pub fn encode_frame(
     step_ms: f32,
     overruns: u32,
 ) -> Vec<u8> {
+    encode_frame_thinned(encoder, world, step_ms, overruns, 1)
+}
+
+/// The particles whose id is a multiple of `one_in`, copied out of `p`.
+struct Thinned {
+    id: Vec<u32>,
+    f: [Vec<f32>; 11],
+    color: Vec<[f32; 4]>,
+    color_delta: Vec<[f32; 4]>,
+}
+
+impl Thinned {
+    fn of(p: &ricochet_engine::particles::Particles, one_in: u32) -> Self {
+        let keep: Vec<usize> = (0..p.len())
+            .filter(|&i| p.id[i].is_multiple_of(one_in))
+            .collect();
+        let pick = |v: &[f32]| keep.iter().map(|&i| v[i]).collect::<Vec<f32>>();
+        Thinned {
+            id: keep.iter().map(|&i| p.id[i]).collect(),
+            f: [
+                pick(&p.x),
+                pick(&p.y),
+                pick(&p.vx),
+                pick(&p.vy),
+                pick(&p.ax),
+                pick(&p.ay),
+                pick(&p.drag),
+                pick(&p.life),
+                pick(&p.initial_life),
+                pick(&p.size),
+                pick(&p.size_delta),
+            ],
+            color: keep.iter().map(|&i| p.color[i]).collect(),
+            color_delta: keep.iter().map(|&i| p.color_delta[i]).collect(),
+        }
+    }
+}
+
+/// [`encode_frame`] of a level of detail for slow links: only the particles whose id is a
+/// multiple of `one_in` (one in `one_in` of them, spread over the world as the emitters
+/// spread their ids), every body.
+pub fn encode_frame_thinned(
+    encoder: &mut FrameEncoder,
+    world: &World,
+    step_ms: f32,
+    overruns: u32,
+    one_in: u32,
+) -> Vec<u8> {
     let stats = world.stats();
     let p = world.particles();
     let bodies: Vec<BodyIn> = world
@@ -120,21 +168,43 @@ pub fn encode_frame(
         energy_change: stats.energy_change as f32,
         residual: stats.residual as f32,
     };
-    let particles = ParticlesIn {
-        id: &p.id,
-        x: &p.x,
-        y: &p.y,
-        vx: &p.vx,
-        vy: &p.vy,
-        ax: &p.ax,
-        ay: &p.ay,
-        drag: &p.drag,
-        life: &p.life,
-        initial_life: &p.initial_life,
-        size: &p.size,
-        size_delta: &p.size_delta,
-        color: &p.color,
-        color_delta: &p.color_delta,
+    let thinned = (one_in > 1).then(|| Thinned::of(p, one_in));
+    let particles = match &thinned {
+        None => ParticlesIn {
+            id: &p.id,
+            x: &p.x,
+            y: &p.y,
+            vx: &p.vx,
+            vy: &p.vy,
+            ax: &p.ax,
+            ay: &p.ay,
+            drag: &p.drag,
+            life: &p.life,
+            initial_life: &p.initial_life,
+            size: &p.size,
+            size_delta: &p.size_delta,
+            color: &p.color,
+            color_delta: &p.color_delta,
+        },
+        Some(t) => {
+            let [x, y, vx, vy, ax, ay, drag, life, initial_life, size, size_delta] = &t.f;
+            ParticlesIn {
+                id: &t.id,
+                x,
+                y,
+                vx,
+                vy,
+                ax,
+                ay,
+                drag,
+                life,
+                initial_life,
+                size,
+                size_delta,
+                color: &t.color,
+                color_delta: &t.color_delta,
+            }
+        }
     };
     encoder.encode(
         world.frame(),

@@ -9,15 +9,16 @@ use std::path::Path;
 
 use ricochet_engine::scene;
 use ricochet_protocol::frame::{FrameDecoder, FrameEncoder, FINE, PARTICLE_BOUND, POS_BOUND};
-use ricochet_protocol::world::encode_frame;
+use ricochet_protocol::world::encode_frame_thinned;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
 }
 
-/// Runs `scene_file` for `steps`, decoding every frame, and returns the worst distances
-/// seen (bodies, particles).
-fn worst(scene_file: &str, steps: u64) -> (f64, f64) {
+/// Runs `scene_file` for `steps`, encoding and decoding every `stride`-th frame with one
+/// particle in `stride` (as a server's reduced-rate stream sends), and returns the worst
+/// distances seen (bodies, particles).
+fn worst(scene_file: &str, steps: u64, stride: u64) -> (f64, f64) {
     let mut world = scene::load(&root().join("assets/scenes").join(scene_file)).unwrap();
     let mut encoder = FrameEncoder::new(60);
     let mut decoder = FrameDecoder::new();
@@ -26,8 +27,17 @@ fn worst(scene_file: &str, steps: u64) -> (f64, f64) {
         if k > 0 {
             world.step();
         }
+        if !k.is_multiple_of(stride) {
+            continue;
+        }
         decoder
-            .apply(&encode_frame(&mut encoder, &world, 0.0, 0))
+            .apply(&encode_frame_thinned(
+                &mut encoder,
+                &world,
+                0.0,
+                0,
+                stride as u32,
+            ))
             .unwrap();
         let dynamic: Vec<_> = world
             .bodies()
@@ -47,8 +57,15 @@ fn worst(scene_file: &str, steps: u64) -> (f64, f64) {
             }
         }
         let p = world.particles();
-        assert_eq!(decoder.particles.len(), p.len(), "{scene_file} frame {k}");
-        for (j, got) in decoder.particles.iter().enumerate() {
+        let kept: Vec<usize> = (0..p.len())
+            .filter(|&j| u64::from(p.id[j]).is_multiple_of(stride))
+            .collect();
+        assert_eq!(
+            decoder.particles.len(),
+            kept.len(),
+            "{scene_file} frame {k}"
+        );
+        for (got, &j) in decoder.particles.iter().zip(&kept) {
             assert_eq!(got.id, p.id[j]);
             particle_off = particle_off
                 .max((got.pos[0] as f64 - p.x[j] as f64).abs())
@@ -60,20 +77,23 @@ fn worst(scene_file: &str, steps: u64) -> (f64, f64) {
 
 #[test]
 fn receivers_hold_every_body_and_particle_within_the_stated_bounds() {
-    for (scene_file, steps) in [
-        ("emitters.toml", 600),
-        ("particles.toml", 600),
-        ("particles-10k.toml", 240),
-        ("suite/rain.toml", 300),
+    for (scene_file, steps, stride) in [
+        ("emitters.toml", 600, 1),
+        ("particles.toml", 600, 1),
+        ("particles-10k.toml", 240, 1),
+        ("suite/rain.toml", 300, 1),
+        ("emitters.toml", 600, 4),
+        ("particles-10k.toml", 240, 8),
+        ("suite/rain.toml", 300, 2),
     ] {
-        let (bodies, particles) = worst(scene_file, steps);
+        let (bodies, particles) = worst(scene_file, steps, stride);
         assert!(
             bodies <= POS_BOUND + FINE / 2.0,
-            "{scene_file}: a body {bodies} units off"
+            "{scene_file}, every {stride}: a body {bodies} units off"
         );
         assert!(
             particles <= PARTICLE_BOUND + 1e-6,
-            "{scene_file}: a particle {particles} units off"
+            "{scene_file}, every {stride}: a particle {particles} units off"
         );
     }
 }

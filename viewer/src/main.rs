@@ -59,6 +59,11 @@ struct Opts {
     /// of every frame are logged whatever the rate. Default 30, and 0 with --save.
     #[arg(long, value_name = "HZ")]
     fps: Option<f64>,
+    /// Watch the fullest frame stream whose rate fits this link: bits a second, with an
+    /// optional k, M or G (`5M`, `5Mbit`, `500kbit`). The server's reduced-rate streams
+    /// carry one frame in 2, 4 or 8 steps (default: every step).
+    #[arg(long, value_name = "RATE", value_parser = ricochet_protocol::net::parse_bits_per_second)]
+    max_bandwidth: Option<f64>,
     /// Stop after drawing this many frames.
     #[arg(long, value_name = "N")]
     frames: Option<u64>,
@@ -228,9 +233,17 @@ fn run(opts: Opts) -> Result<()> {
         .or(opts.save.as_ref().map(|_| 10.0))
         .map(Duration::from_secs_f64);
     let network = opts.network.clone().client();
-    let client = Client::open(&network, &opts.world)?;
+    let mut client = Client::open(&network, &opts.world)?;
     let info = wait_for_world(&client, Duration::from_secs_f64(opts.wait))?;
     tracing::info!(world = %opts.world, scene = %info.scene, "joined");
+    if let Some(bits) = opts.max_bandwidth {
+        client.watch_every(info.stream_for(bits));
+        tracing::info!(
+            every = client.every(),
+            "watching the stream of one frame in {} steps, to fit {bits} bits a second",
+            client.every()
+        );
+    }
 
     let (rec, served) = open_sink(&opts, "ricochet")?;
     let mut sink = WorldSink::new(rec, "ricochet")?;
@@ -339,8 +352,13 @@ fn run(opts: Opts) -> Result<()> {
                     sink.log_stats(h.frame, h.time, &h.stats, bytes.len())?;
                 }
                 Err(DecodeError::Stale { .. }) => {}
-                Err(DecodeError::OutOfSync { expected, got }) => {
+                Err(DecodeError::OutOfSync { held, follows }) => {
                     if lost_since.is_some_and(|t| t.elapsed() < Duration::from_secs(1)) {
+                        continue;
+                    }
+                    // A reduced-rate stream is for a slow link: its next key frame
+                    // resyncs, not the whole state at once.
+                    if client.every() > 1 {
                         continue;
                     }
                     resyncs += 1;
@@ -353,14 +371,14 @@ fn run(opts: Opts) -> Result<()> {
                         Ok(_) => {
                             lost_since = None;
                             sink.log_note(
-                                &format!("frames {expected}..{got} lost on the way; resynced at frame {} (resync {resyncs})", decoder.frame),
+                                &format!("frames after {held} up to {follows} lost on the way; resynced at frame {} (resync {resyncs})", decoder.frame),
                                 "WARN",
                             )?;
                         }
                         Err(e) => {
                             lost_since = Some(Instant::now());
                             sink.log_note(
-                                &format!("frames {expected}..{got} lost and the resync failed ({e:#}); waiting for the next key frame"),
+                                &format!("frames after {held} up to {follows} lost and the resync failed ({e:#}); waiting for the next key frame"),
                                 "WARN",
                             )?;
                         }

@@ -78,6 +78,11 @@ enum Cmd {
         /// Print each frame's bodies and figures as JSON.
         #[arg(long)]
         json: bool,
+        /// Watch the fullest frame stream whose rate fits this link: bits a second, with
+        /// an optional k, M or G (`5M`, `5Mbit`, `500kbit`). The server's reduced-rate
+        /// streams carry one frame in 2, 4 or 8 steps.
+        #[arg(long, value_name = "RATE", value_parser = ricochet_protocol::net::parse_bits_per_second)]
+        max_bandwidth: Option<f64>,
     },
     /// List the worlds whose servers are up.
     Worlds,
@@ -170,7 +175,8 @@ fn run(cli: Cli) -> Result<i32> {
             frames,
             seconds,
             json,
-        } => watch(&network, &cli.world, frames, seconds, json),
+            max_bandwidth,
+        } => watch(&network, &cli.world, frames, seconds, json, max_bandwidth),
         Cmd::Record { file, seconds } => record(&network, &cli.world, &file, seconds),
         Cmd::Replay {
             file,
@@ -319,8 +325,13 @@ fn watch(
     frames: Option<u64>,
     seconds: Option<f64>,
     json: bool,
+    max_bandwidth: Option<f64>,
 ) -> Result<i32> {
-    let client = Client::open(network, world)?;
+    let mut client = Client::open(network, world)?;
+    if let Some(bits) = max_bandwidth {
+        let every = client.watch_within(bits, Duration::from_secs(5))?;
+        tracing::info!(every, "watching the stream of one frame in {every} steps");
+    }
     let (stream, mut decoder) = client.join(Duration::from_secs(5))?;
     let began = Instant::now();
     let limit = seconds.map(Duration::from_secs_f64);
@@ -348,8 +359,12 @@ fn watch(
                         .iter()
                         .map(|b| serde_json::json!({"id": b.id, "x": b.pos()[0], "y": b.pos()[1], "vx": b.vel()[0], "vy": b.vel()[1], "collided": b.collided}))
                         .collect();
+                    let received_ms = std::time::SystemTime::now()
+                        .duration_since(std::time::UNIX_EPOCH)
+                        .map_or(0, |d| d.as_millis() as u64);
                     let line = serde_json::json!({
                         "frame": h.frame, "t": h.time, "bytes": bytes.len(), "key": h.kind == 1,
+                        "every": client.every(), "received_ms": received_ms,
                         "bodies": bodies, "statics": decoder.statics.len(), "particles": decoder.particles.len(),
                         "emitters": decoder.emitters.len(), "contacts": s.contacts, "overruns": s.overruns,
                     });
@@ -363,6 +378,17 @@ fn watch(
                     )?;
                 }
                 out.flush()?;
+            }
+            // Behind: catch up to the present from the server's state, rather than wait
+            // for the next key frame.
+            // (On a reduced-rate stream, for slow links, the next key frame does.)
+            Err(e @ ricochet_protocol::frame::DecodeError::OutOfSync { .. }) => {
+                tracing::debug!("{e}");
+                if client.every() == 1 {
+                    if let Ok(state) = client.state(Duration::from_secs(2)) {
+                        let _ = decoder.apply(&state);
+                    }
+                }
             }
             Err(e) => tracing::debug!("frame skipped: {e}"),
         }

@@ -36,6 +36,9 @@ pub struct FrameDecoder {
 pub struct Header {
     pub kind: u8,
     pub frame: u64,
+    /// The frame this one follows in its stream (a key frame: its own number less the
+    /// stream's steps a frame).
+    pub prev: u64,
     pub time: f64,
     pub dt: f64,
     pub stats: FrameStats,
@@ -54,6 +57,12 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
         return Err(DecodeError::Malformed(format!("unknown kind {kind}")));
     }
     let frame = r.u64()?;
+    let prev = r.u64()?;
+    if prev > frame {
+        return Err(DecodeError::Malformed(format!(
+            "frame {frame} follows frame {prev}"
+        )));
+    }
     let time = f64::from_bits(r.u64()?);
     let dt = f64::from_bits(r.u64()?);
     let stats = FrameStats {
@@ -73,6 +82,7 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
     Ok(Header {
         kind,
         frame,
+        prev,
         time,
         dt,
         stats,
@@ -83,6 +93,10 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
 pub fn peek_header(bytes: &[u8]) -> Result<Header, DecodeError> {
     read_header(&mut Reader::new(bytes))
 }
+
+/// The most steps a delta frame may follow the frame before it by (a stream's frames are
+/// at most this far apart): what a receiver's update of every particle is bounded by.
+pub const MAX_STEPS_A_FRAME: u64 = 64;
 
 impl FrameDecoder {
     pub fn new() -> Self {
@@ -101,15 +115,23 @@ impl FrameDecoder {
                 frame: header.frame,
             });
         }
-        if header.kind == KIND_DELTA
-            && !(self.synced && self.frame.checked_add(1) == Some(header.frame))
-        {
+        if header.kind == KIND_DELTA && !(self.synced && self.frame == header.prev) {
             self.synced = false;
             return Err(DecodeError::OutOfSync {
-                expected: self.frame.saturating_add(1),
-                got: header.frame,
+                held: self.frame,
+                follows: header.prev,
             });
         }
+        // Steps since the frame before: what receivers move particles by, and what a
+        // body's displacement spans.
+        let steps = header.frame - header.prev;
+        if header.kind == KIND_DELTA && !(1..=MAX_STEPS_A_FRAME).contains(&steps) {
+            return Err(DecodeError::Malformed(format!(
+                "{steps} steps from frame {} to {}",
+                header.prev, header.frame
+            )));
+        }
+        let frame_dt = header.dt * steps.max(1) as f64;
         // An emitter is at least 9 bytes: two f32 and a varint.
         let mut emitters = Vec::with_capacity(r.count(9)?);
         for _ in 0..emitters.capacity() {
@@ -126,7 +148,7 @@ impl FrameDecoder {
             &mut r,
             if delta { &self.bodies } else { &[] },
             header.kind,
-            header.dt,
+            frame_dt,
         )?;
         let particles = read_particles(
             &mut r,
@@ -138,6 +160,7 @@ impl FrameDecoder {
             header.kind,
             header.frame,
             header.dt as f32,
+            steps,
         )?;
         if r.at != bytes.len() {
             return Err(DecodeError::Malformed(format!(
@@ -155,10 +178,9 @@ impl FrameDecoder {
             self.bodies.clear();
         }
         // Every body without a record moves on as predicted.
-        let dt = header.dt;
         records::fold(&mut self.bodies, bodies, patch_body, |b| {
             (b.p, b.d) = b.predicted();
-            b.dt = dt;
+            b.dt = frame_dt;
         });
         self.particles = particles;
         self.emitters = emitters;
@@ -401,7 +423,13 @@ fn read_particles(
     kind: u8,
     frame: u64,
     dt: f32,
+    steps: u64,
 ) -> Result<Vec<Particle>, DecodeError> {
+    let advance = |p: &mut Particle| {
+        for _ in 0..steps {
+            p.advance(dt);
+        }
+    };
     let mut prev = PreviousParticle::default();
     let exact = kind == KIND_RESYNC;
     records::read_into_copy(
@@ -419,7 +447,7 @@ fn read_particles(
             let mut p = existing.ok_or_else(|| {
                 DecodeError::Malformed(format!("update of unknown particle {id}"))
             })?;
-            p.advance(dt);
+            advance(&mut p);
             if flags & POS != 0 {
                 let q = [r.svarint()?, r.svarint()?];
                 for (pos, q) in p.pos.iter_mut().zip(q) {
@@ -435,6 +463,6 @@ fn read_particles(
             p.frozen[1] |= flags & FREEZE_Y != 0;
             Ok(Some(p))
         },
-        |p| p.advance(dt),
+        advance,
     )
 }

@@ -42,11 +42,19 @@ fn color_byte(c: f32) -> u8 {
     (c * COLOR_SCALE).round().clamp(0.0, 255.0) as u8
 }
 
-fn put_header(out: &mut Vec<u8>, kind: u8, frame: u64, time: f64, dt: f64, s: &FrameStats) {
+/// Where a frame sits in its stream: its number, and the number of the frame before it.
+#[derive(Clone, Copy, Debug)]
+struct At {
+    frame: u64,
+    prev: u64,
+}
+
+fn put_header(out: &mut Vec<u8>, kind: u8, at: At, time: f64, dt: f64, s: &FrameStats) {
     out.extend_from_slice(MAGIC);
     out.push(crate::PROTOCOL_VERSION);
     out.push(kind);
-    out.extend_from_slice(&frame.to_le_bytes());
+    out.extend_from_slice(&at.frame.to_le_bytes());
+    out.extend_from_slice(&at.prev.to_le_bytes());
     out.extend_from_slice(&time.to_le_bytes());
     out.extend_from_slice(&dt.to_le_bytes());
     for v in [
@@ -293,7 +301,7 @@ pub fn encode_statics(frame: u64, time: f64, statics: &[BodyIn]) -> Vec<u8> {
     put_header(
         &mut out,
         KIND_STATICS,
-        frame,
+        At { frame, prev: frame },
         time,
         0.0,
         &FrameStats::default(),
@@ -312,7 +320,7 @@ pub fn encode_statics(frame: u64, time: f64, statics: &[BodyIn]) -> Vec<u8> {
 /// The header of a frame, for [`FrameEncoder::resync_frame`].
 #[derive(Clone, Debug)]
 struct Last {
-    frame: u64,
+    at: At,
     time: f64,
     dt: f64,
     stats: FrameStats,
@@ -354,7 +362,7 @@ impl FrameEncoder {
         put_header(
             &mut out,
             KIND_RESYNC,
-            last.frame,
+            last.at,
             last.time,
             last.dt,
             &last.stats,
@@ -368,7 +376,7 @@ impl FrameEncoder {
             &mut out,
             &self.particles,
             |s| s.p.id,
-            |out, s| put_new_particle(out, &mut prev, &s.p.as_of(last.frame), true),
+            |out, s| put_new_particle(out, &mut prev, &s.p.as_of(last.at.frame), true),
         );
         Some(out)
     }
@@ -381,7 +389,8 @@ impl FrameEncoder {
         self.bodies.clear();
     }
 
-    /// Encodes one frame. `dt` is the time a frame stands for (the world's step);
+    /// Encodes one frame. `dt` is the world's step; a frame follows the frame encoded
+    /// before it, however many steps apart (a stream may carry every `k`-th step);
     /// `bodies` are the dynamic bodies and `particles` the particles, each in increasing
     /// key (id) order, as the engine keeps them.
     #[allow(clippy::too_many_arguments)]
@@ -395,6 +404,17 @@ impl FrameEncoder {
         bodies: &[BodyIn],
         particles: &ParticlesIn,
     ) -> Vec<u8> {
+        // The frame this one follows in the stream; after a reset (frame numbers start
+        // again) or before the first, the step before.
+        let prev = match &self.last {
+            Some(l) if l.at.frame < frame => l.at.frame,
+            _ => {
+                self.force_key = true;
+                frame.saturating_sub(1)
+            }
+        };
+        let at = At { frame, prev };
+        let steps = (frame - prev).max(1);
         // A new dt changes what a displacement per frame means: receivers start afresh.
         let dt_changed = self.last.as_ref().is_some_and(|l| l.dt != dt);
         let key = self.force_key || dt_changed || self.since_key + 1 >= self.keyframe_interval;
@@ -410,16 +430,16 @@ impl FrameEncoder {
         put_header(
             &mut out,
             if key { KIND_KEY } else { KIND_DELTA },
-            frame,
+            at,
             time,
             dt,
             stats,
         );
         put_emitters(&mut out, emitters);
-        self.encode_bodies(&mut out, key, dt, bodies);
-        self.encode_particles(&mut out, frame, dt as f32, particles);
+        self.encode_bodies(&mut out, key, dt * steps as f64, bodies);
+        self.encode_particles(&mut out, frame, dt as f32, steps, particles);
         self.last = Some(Last {
-            frame,
+            at,
             time,
             dt,
             stats: *stats,
@@ -541,7 +561,14 @@ impl FrameEncoder {
     /// The particles' section: NEW records for the born (and, in a key frame, for every
     /// particle), REMOVED for the expired, and a record for each particle that the update
     /// receivers run missed by more than [`PARTICLE_BOUND`](super::PARTICLE_BOUND).
-    fn encode_particles(&mut self, out: &mut Vec<u8>, frame: u64, dt: f32, p: &ParticlesIn) {
+    fn encode_particles(
+        &mut self,
+        out: &mut Vec<u8>,
+        frame: u64,
+        dt: f32,
+        steps: u64,
+        p: &ParticlesIn,
+    ) {
         let n = p.id.len();
         let mut records = Records::with_capacity(n * 2);
         let mut prev = PreviousParticle::default();
@@ -577,7 +604,9 @@ impl FrameEncoder {
                     put_new_particle(records.start(id), &mut prev, &particle, false);
                     return ParticleSent { p: particle, truth };
                 };
-                s.p.advance(dt);
+                for _ in 0..steps {
+                    s.p.advance(dt);
+                }
                 let moved = [0, 1].map(|k| (truth[k] as f64 - s.truth[k] as f64).abs());
                 s.truth = truth;
                 let err = [0, 1].map(|k| truth[k] as f64 - s.p.pos[k] as f64);

@@ -18,8 +18,11 @@
 //! version    u8       3
 //! kind       u8       0 delta, 1 key frame, 2 statics snapshot, 3 resync key frame
 //! frame      u64      steps taken
+//! prev       u64      the frame this one follows in its stream (a delta applies only
+//!                     on it; a stream may carry every k-th step); in a key frame, its
+//!                     own number less the stream's steps a frame
 //! time       f64      simulated seconds
-//! dt         f64      seconds a frame stands for (the world's step)
+//! dt         f64      the world's step, seconds
 //! stats      12 x 4 bytes: step_ms f32, contacts u32, relaxation_iterations u32,
 //!                     deepest_penetration f32, kinetic_energy f32, particle_contacts u32,
 //!                     overruns u32, dynamic_bodies u32, particles u32, emitters u32,
@@ -48,8 +51,8 @@
 //! more than [`DISP_BOUND`]: a receiver's position is within 1/2048 units of the server's,
 //! its displacement within 2^-12 units a frame, at every frame. A body falling
 //! freely, resting, or sliding at a steady deceleration needs no record at all. A
-//! receiver's velocity is `d / dt` (the displacement over the last frame: the body's
-//! velocity in a step that moved it by its velocity alone).
+//! receiver's velocity is `d / (dt (frame - prev))` (the displacement over the last frame
+//! over its time: the body's velocity in a step that moved it by its velocity alone).
 //!
 //! Body record: `key gap` varint (key minus the previous record's key, the first from 0),
 //! `flags` u8, then by flag:
@@ -78,7 +81,8 @@
 //!
 //! A receiver holds each particle's position and velocity as f32, with its acceleration
 //! and drag, and at every delta frame, before reading its records, moves every particle it
-//! holds that is not frozen exactly as the engine does (f32 arithmetic, `dt` as f32):
+//! holds that is not frozen exactly as the engine does (f32 arithmetic, `dt` as f32), once
+//! for each step since the frame before (`frame - prev`):
 //!
 //! ```text
 //! v <- (v + a dt) drag;  p <- p + v dt
@@ -120,7 +124,7 @@ mod records;
 mod tests;
 mod wire;
 
-pub use decode::{peek_header, FrameDecoder, Header};
+pub use decode::{peek_header, FrameDecoder, Header, MAX_STEPS_A_FRAME};
 pub use encode::{encode_statics, FrameEncoder};
 
 /// A receiver holds bodies' positions, displacements and their changes in integers of
@@ -184,7 +188,7 @@ const SAME_MOTION: u8 = 0x40;
 const SAME_LOOK: u8 = 0x80;
 
 /// Header bytes before the sections.
-pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 8 + 48;
+pub const HEADER_BYTES: usize = 3 + 1 + 1 + 8 + 8 + 8 + 8 + 48;
 
 /// The figures of the step that produced a frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -378,8 +382,9 @@ pub enum DecodeError {
     Malformed(String),
     /// A frame of another protocol version.
     Version(u8),
-    /// A delta frame that does not follow the last frame applied: wait for a key frame.
-    OutOfSync { expected: u64, got: u64 },
+    /// A delta frame that does not follow the last frame applied (`held`): it follows
+    /// frame `follows`. Wait for a key frame, or fetch the state.
+    OutOfSync { held: u64, follows: u64 },
     /// A frame not newer than the state already held (after a resync); ignored.
     Stale { frame: u64 },
 }
@@ -393,9 +398,10 @@ impl fmt::Display for DecodeError {
                 "frame version {v}, this reader knows {}",
                 crate::PROTOCOL_VERSION
             ),
-            DecodeError::OutOfSync { expected, got } => write!(
+            DecodeError::OutOfSync { held, follows } => write!(
                 f,
-                "delta frame {got} does not follow frame {expected}; waiting for a key frame"
+                "a delta frame follows frame {follows}, this receiver holds frame {held}; \
+                 waiting for a key frame"
             ),
             DecodeError::Stale { frame } => write!(f, "frame {frame} is older than the state held"),
         }

@@ -217,8 +217,8 @@ fn a_missed_frame_waits_for_the_next_key_frame() {
     assert_eq!(
         dec.apply(&frames[2]),
         Err(DecodeError::OutOfSync {
-            expected: 1,
-            got: 2
+            held: 0,
+            follows: 1
         })
     );
     assert!(!dec.synced);

@@ -4,12 +4,12 @@
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use super::streams::Streams;
 use ricochet_engine::scene;
 use ricochet_engine::world::{short, Limits, World};
 use ricochet_protocol::command::{
     Action, Command, Health, Reply, ServerCommand, WorldInfo, MAX_ERROR_BYTES,
 };
-use ricochet_protocol::frame::FrameEncoder;
 use ricochet_protocol::world as wire;
 
 use super::HostOptions;
@@ -52,7 +52,8 @@ pub struct Hosted {
     pub scene_text: String,
     pub scene_name: PathBuf,
     overrides: Vec<String>,
-    pub encoder: FrameEncoder,
+    /// The frame streams and their encoders.
+    pub streams: Streams,
     statics_revision: Option<u64>,
     pub snapshot: Vec<u8>,
     /// When the statics were last published, and which (the generation and the world's
@@ -111,7 +112,7 @@ impl Hosted {
             scene_text,
             scene_name,
             overrides: opts.overrides.clone(),
-            encoder: FrameEncoder::new(opts.keyframe_interval),
+            streams: Streams::new(opts.keyframe_interval),
             statics_revision: None,
             snapshot: Vec::new(),
             snapshot_sent: None,
@@ -133,7 +134,7 @@ impl Hosted {
     fn replace_world(&mut self, world: World) {
         self.world = world;
         self.generation += 1;
-        self.encoder.force_key_frame();
+        self.streams.force_key_frame();
         self.statics_revision = None;
         self.fresh = true;
     }
@@ -152,6 +153,7 @@ impl Hosted {
             generation: self.generation,
             health: Some(self.health.clone()),
             accuracy: self.accuracy.clone(),
+            streams: self.streams.rates(),
         }
     }
 
@@ -182,13 +184,11 @@ impl Hosted {
         Some(self.snapshot.clone())
     }
 
-    pub fn encode_frame(&mut self) -> Vec<u8> {
-        wire::encode_frame(
-            &mut self.encoder,
-            &self.world,
-            self.last_step_ms,
-            self.overruns,
-        )
+    /// The frames due after the world's last step, stream by stream (stream index,
+    /// bytes).
+    pub fn encode_frames(&mut self) -> Vec<(usize, Vec<u8>)> {
+        self.streams
+            .encode(&self.world, self.last_step_ms, self.overruns)
     }
 
     /// The stepping thread's time `command` is expected to take here, before it runs: the

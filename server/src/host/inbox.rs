@@ -49,7 +49,8 @@ pub struct Incoming {
 /// A query answered from what the server already has.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Ask {
-    State,
+    /// The state of the stream of one frame in this many steps.
+    State(u64),
     Snapshot,
     Info,
 }

@@ -23,6 +23,7 @@ pub mod hosted;
 pub mod inbox;
 pub mod journal;
 pub mod outbox;
+pub mod streams;
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -36,7 +37,7 @@ use ricochet_protocol::command::{Event, Health};
 use ricochet_protocol::keys::WorldKeys;
 use ricochet_protocol::net::Network;
 use ricochet_protocol::world as wire;
-use zenoh::qos::CongestionControl;
+use zenoh::qos::{CongestionControl, Priority};
 use zenoh::sample::SourceInfo;
 use zenoh::Wait;
 
@@ -83,6 +84,16 @@ pub const DROPS_EVERY: Duration = Duration::from_secs(1);
 /// reply to a query asked with `Block`) before zenoh closes that peer's link: zenoh's
 /// default is 5 s. Only the outbox thread ever waits so.
 pub const BLOCK_WAIT_BEFORE_CLOSE: Duration = Duration::from_millis(1000);
+/// The priority of what the step thread publishes (frames, snapshots). zenoh keeps one
+/// queue, behind one lock, per peer and priority: a reply the outbox thread is blocked
+/// on for a slow peer (up to [`BLOCK_WAIT_BEFORE_CLOSE`]) holds that lock, and a frame
+/// at the replies' priority would wait for it, and the step with it. Replies and events
+/// keep zenoh's default priority (`Data`), ahead of frames on a congested link.
+pub const STEP_PRIORITY: Priority = Priority::DataLow;
+/// How long a frame split in fragments (a key frame of many particles) may wait for room
+/// in a slow peer's queue before zenoh drops it: zenoh's default is 50 ms, and the step
+/// thread publishes, so a slow peer would hold up every step by that much.
+pub const FRAGMENTS_WAIT_BEFORE_DROP: Duration = Duration::from_millis(1);
 
 /// How to host a world.
 #[derive(Clone, Debug)]
@@ -175,6 +186,17 @@ pub fn server_config(opts: &HostOptions) -> Result<zenoh::Config> {
             (
                 "transport/link/tx/queue/congestion_control/block/wait_before_close",
                 BLOCK_WAIT_BEFORE_CLOSE.as_micros().to_string(),
+            ),
+            (
+                "transport/link/tx/queue/congestion_control/drop/max_wait_before_drop_fragments",
+                FRAGMENTS_WAIT_BEFORE_DROP.as_micros().to_string(),
+            ),
+            // Room for a key frame of many particles to a slow peer (16 batches of 64 KiB,
+            // zenoh's most; its default is 2), taken only when needed.
+            ("transport/link/tx/queue/size/data_low", "16".to_string()),
+            (
+                "transport/link/tx/queue/allocation/mode",
+                "\"lazy\"".to_string(),
             ),
         ] {
             config
@@ -289,14 +311,24 @@ pub fn run(opts: HostOptions) -> Result<()> {
         .wait()
         .map_err(|e| anyhow!("cannot open the server's zenoh session: {e}"))?;
     let z = |e: zenoh::Error| anyhow!("zenoh: {e}");
-    let frames = session
-        .declare_publisher(&keys.frame)
-        .congestion_control(CongestionControl::Drop)
-        .wait()
-        .map_err(z)?;
+    // One publisher per frame stream (streams.rs), in the streams' order.
+    let frames = host
+        .streams
+        .streams
+        .iter()
+        .map(|s| {
+            session
+                .declare_publisher(keys.frame_every(s.every))
+                .congestion_control(CongestionControl::Drop)
+                .priority(STEP_PRIORITY)
+                .wait()
+                .map_err(z)
+        })
+        .collect::<Result<Vec<_>>>()?;
     let snapshots = session
         .declare_publisher(&keys.snapshot)
         .congestion_control(CongestionControl::Drop)
+        .priority(STEP_PRIORITY)
         .wait()
         .map_err(z)?;
     let events = session
@@ -329,11 +361,14 @@ pub fn run(opts: HostOptions) -> Result<()> {
         .wait()
         .map_err(z)?;
     let mut queryables = Vec::new();
-    for (key, ask) in [
-        (&keys.snapshot, Ask::Snapshot),
-        (&keys.state, Ask::State),
-        (&keys.info, Ask::Info),
-    ] {
+    let mut asks = vec![
+        (keys.snapshot.clone(), Ask::Snapshot),
+        (keys.info.clone(), Ask::Info),
+    ];
+    for s in &host.streams.streams {
+        asks.push((keys.state_every(s.every), Ask::State(s.every)));
+    }
+    for (key, ask) in asks {
         let inbox = Arc::clone(&inbox);
         queryables.push(
             session
@@ -363,12 +398,26 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let mut publish = |h: &mut Hosted| {
         h.fresh = false;
         publish_statics(h, &snapshots);
-        let bytes = h.encode_frame();
-        // The source names this session, which holds the world's token: clients take
-        // frames from it only.
-        let source = SourceInfo::new(frames.id(), h.world.frame() as u32);
-        if let Err(e) = frames.put(bytes).source_info(source).wait() {
-            tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
+        // A stream is published only while someone subscribes to it: asked every 30
+        // frames (a stream watched again starts with a key frame).
+        if h.world.frame().is_multiple_of(30) {
+            let everys: Vec<u64> = h.streams.streams.iter().map(|s| s.every).collect();
+            for (every, publisher) in everys.into_iter().zip(&frames) {
+                let watched = publisher
+                    .matching_status()
+                    .wait()
+                    .map(|m| m.matching())
+                    .unwrap_or(true);
+                h.streams.set_watched(every, watched);
+            }
+        }
+        for (i, bytes) in h.encode_frames() {
+            // The source names this session, which holds the world's token: clients take
+            // frames from it only.
+            let source = SourceInfo::new(frames[i].id(), h.world.frame() as u32);
+            if let Err(e) = frames[i].put(bytes).source_info(source).wait() {
+                tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
+            }
         }
         if let Some(out) = dump.as_mut() {
             let written = wire::write_frame(out, &h.world).and_then(|()| out.flush());
@@ -399,7 +448,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let mut deferred: Vec<Deferred> = Vec::new();
     let mut budgets = Budgets::new(opts.budget, Instant::now());
     // The state query's answer, kept for the frame it was made at.
-    let mut state: Option<((u64, u64), Vec<u8>)> = None;
+    let mut state: Option<((u64, u64, u64), Vec<u8>)> = None;
     let mut last_report = (Instant::now(), Health::default());
     let mut last_drops = (Instant::now(), [0u64; 3]);
     loop {
@@ -417,12 +466,18 @@ pub fn run(opts: HostOptions) -> Result<()> {
                     host.refresh_snapshot();
                     host.snapshot.clone()
                 }
-                Ask::State => {
-                    let at = (host.generation, host.world.frame());
+                Ask::State(every) => {
+                    let at = (host.generation, host.world.frame(), every);
                     match &state {
                         Some((made, bytes)) if *made == at => bytes.clone(),
                         _ => {
-                            let bytes = host.encoder.resync_frame().expect("frame 0 was published");
+                            // Before a tier's first frame, the full stream's state: the
+                            // tier's first frame is a key frame.
+                            let bytes = host
+                                .streams
+                                .resync(every)
+                                .or_else(|| host.streams.resync(1))
+                                .expect("frame 0 was encoded");
                             state = Some((at, bytes.clone()));
                             bytes
                         }

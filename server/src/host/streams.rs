@@ -1,0 +1,146 @@
+//! The frame streams: every step's frame, and reduced-rate tiers for viewers whose link
+//! cannot carry every step: a tier carries one frame in `every` steps and one particle in
+//! `every` (by id), every body (births and expiries, most of a fire's bytes, would not
+//! get fewer with fewer frames alone). Each stream has its own
+//! encoder, so its deltas, and its receivers' prediction, follow its own frames; zenoh
+//! fans each out to all its subscribers, so a frame is encoded once per stream, whatever
+//! the number of viewers.
+//!
+//! In: the world after each step. Out: the frames due (stream by stream), the state of a
+//! stream for its late joiners, and each stream's bytes a second. Every stream is encoded
+//! whether anyone watches it or not, so its rate is measured, not guessed (births and
+//! expiries cost the same in every stream: a tier is not its stride times cheaper); a
+//! stream nobody watches is not published, and when it is watched again its next frame is
+//! a key frame. A tier's key frames come `every` times further apart in its frames (so
+//! `every`² times further apart in time): a receiver of a tier that lost a frame waits
+//! that long for the next.
+
+use std::time::{Duration, Instant};
+
+use ricochet_engine::world::World;
+use ricochet_protocol::command::StreamRate;
+use ricochet_protocol::frame::FrameEncoder;
+use ricochet_protocol::keys::STREAMS;
+use ricochet_protocol::world as wire;
+
+/// The bytes a stream sent in the current second, and in the last whole one.
+#[derive(Clone, Debug)]
+struct Rate {
+    since: Instant,
+    bytes: u64,
+    per_second: f64,
+}
+
+impl Rate {
+    fn add(&mut self, bytes: u64, now: Instant) {
+        let elapsed = now.duration_since(self.since);
+        if elapsed >= Duration::from_secs(1) {
+            self.per_second = self.bytes as f64 / elapsed.as_secs_f64();
+            self.bytes = 0;
+            self.since = now;
+        }
+        self.bytes += bytes;
+    }
+}
+
+/// One stream.
+pub struct Stream {
+    /// Steps a frame of the stream stands for.
+    pub every: u64,
+    encoder: FrameEncoder,
+    /// Whether anyone subscribes.
+    pub watched: bool,
+    rate: Rate,
+}
+
+/// Every stream of a world.
+pub struct Streams {
+    pub streams: Vec<Stream>,
+}
+
+impl Streams {
+    pub fn new(keyframe_interval: u64) -> Self {
+        let now = Instant::now();
+        Streams {
+            streams: STREAMS
+                .iter()
+                .map(|&every| Stream {
+                    every,
+                    // A tier's key frames (all of the world at once) are what a slow link
+                    // takes longest to carry: one in `every` times as many frames.
+                    encoder: FrameEncoder::new(keyframe_interval.saturating_mul(every)),
+                    watched: every == 1,
+                    rate: Rate {
+                        since: now,
+                        bytes: 0,
+                        per_second: 0.0,
+                    },
+                })
+                .collect(),
+        }
+    }
+
+    /// Every stream's next frame is a key frame (a new world).
+    pub fn force_key_frame(&mut self) {
+        for s in &mut self.streams {
+            s.encoder.force_key_frame();
+        }
+    }
+
+    /// Says whether the stream of `every` has subscribers; one that had none is brought
+    /// back with a key frame.
+    pub fn set_watched(&mut self, every: u64, watched: bool) {
+        if let Some(s) = self.streams.iter_mut().find(|s| s.every == every) {
+            if watched && !s.watched {
+                s.encoder.force_key_frame();
+            }
+            s.watched = watched;
+        }
+    }
+
+    /// The frames due after the world's last step, as (stream index, bytes): each stream's
+    /// on the steps it carries, to publish where it is watched.
+    pub fn encode(&mut self, world: &World, step_ms: f32, overruns: u32) -> Vec<(usize, Vec<u8>)> {
+        let now = Instant::now();
+        let frame = world.frame();
+        let mut out = Vec::new();
+        for (i, s) in self.streams.iter_mut().enumerate() {
+            if !frame.is_multiple_of(s.every) {
+                continue;
+            }
+            let bytes = wire::encode_frame_thinned(
+                &mut s.encoder,
+                world,
+                step_ms,
+                overruns,
+                s.every as u32,
+            );
+            s.rate.add(bytes.len() as u64, now);
+            if s.watched {
+                out.push((i, bytes));
+            }
+        }
+        out
+    }
+
+    /// A key frame of what the receivers of the stream of `every` hold (`None` before its
+    /// first frame, or for no such stream).
+    pub fn resync(&self, every: u64) -> Option<Vec<u8>> {
+        self.streams
+            .iter()
+            .find(|s| s.every == every)?
+            .encoder
+            .resync_frame()
+    }
+
+    /// Each stream's bytes over the last whole second.
+    pub fn rates(&self) -> Vec<StreamRate> {
+        self.streams
+            .iter()
+            .map(|s| StreamRate {
+                every: s.every,
+                bytes_per_second: s.rate.per_second,
+            })
+            .collect()
+    }
+}
