@@ -13,6 +13,7 @@
 
 pub mod bench;
 pub mod chart;
+pub mod fanout;
 pub mod hostile;
 pub mod scene_tradeoff;
 pub mod soak;
@@ -70,6 +71,11 @@ pub fn command_line() -> String {
 
 /// The machine the figures were taken on, in one line.
 pub fn machine() -> String {
+    format!("{}, one thread used", cpu())
+}
+
+/// The machine's cores and CPU model.
+pub fn cpu() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
         .and_then(|t| {
@@ -80,7 +86,7 @@ pub fn machine() -> String {
         })
         .unwrap_or_else(|| "unknown CPU".into());
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
-    format!("{cores} cores ({cpu}), one thread used")
+    format!("{cores} cores ({cpu})")
 }
 
 #[cfg(test)]

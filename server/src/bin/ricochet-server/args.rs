@@ -279,6 +279,25 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         out: Option<PathBuf>,
     },
+    /// Fan-out: one server and N viewers decoding every frame of particles-100k (its
+    /// emitter started again every 4 s), directly and through a router; reports the
+    /// server's CPU, the bytes it wrote, its late steps, and each viewer's frames and lag.
+    /// Prints a table; with --out, writes it between the fanout markers of FILE
+    /// (docs/network.md). Use a release build.
+    Fanout {
+        /// Viewers.
+        #[arg(long, default_value_t = 8)]
+        viewers: usize,
+        /// Seconds of each mode.
+        #[arg(long, default_value_t = 12.0)]
+        seconds: f64,
+        /// Where the shipped scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Write the table between the fanout markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
     /// Make the TLS certificates of a secured deployment (assets/zenoh/): a certificate
     /// authority and the router's certificate signed by it, as PEM files in DIR
     /// (ca.pem, ca-key.pem, router.pem, router-key.pem; keys readable by their owner

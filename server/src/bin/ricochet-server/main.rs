@@ -140,6 +140,21 @@ fn main() -> Result<()> {
             }
             Ok(())
         }
+        Command::Fanout {
+            viewers,
+            seconds,
+            scenes,
+            out,
+        } => {
+            let report = ricochet_server::report::fanout::run(&scenes, viewers, seconds)?;
+            let table = report.to_markdown();
+            println!("{table}");
+            if let Some(out) = out {
+                ricochet_server::report::splice(&out, "fanout", &table)?;
+                eprintln!("wrote the table of {}", out.display());
+            }
+            Ok(())
+        }
         Command::Certs { out, hosts, days } => {
             for file in ricochet_server::certs::make(&out, &hosts, days)? {
                 eprintln!("wrote {}", file.display());

@@ -117,6 +117,11 @@ impl ServerProcess {
         })
     }
 
+    /// The server's process id.
+    pub(crate) fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Takes the memory now as the start: the server is up, its world loaded.
     pub(super) fn mark_start(&self) {
         if let Some((mib, total, threads)) = rss_mib(self.child.id()) {
