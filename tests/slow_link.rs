@@ -28,8 +28,9 @@ use ricochet_protocol::net::{Mode, Network};
 /// The link's rate.
 const LINK: &str = "1mbit";
 const LINK_BITS: f64 = 1e6;
-/// The budget the careful watcher states: most of the link.
-const BUDGET: &str = "800k";
+/// The budget the careful watcher states: well under the link, as the streams' rates
+/// swing with the fire.
+const BUDGET: &str = "600k";
 /// The careful watcher's frames arrive at most this late.
 const MAX_LAG: Duration = Duration::from_millis(500);
 const WATCH_SECONDS: f64 = 10.0;
@@ -271,8 +272,9 @@ fn a_viewer_on_a_slow_link_keeps_up_on_the_stream_its_budget_fits() {
         .collect();
     assert!(
         lag <= MAX_LAG,
-        "the careful watcher fell {lag:?} behind (frame, ms): {:?}",
-        &lags[..lags.len().min(20)]
+        "the careful watcher of one frame in {every} fell {lag:?} behind (frame, ms): {:?}; the server's streams: {:?}",
+        &lags[..lags.len().min(20)],
+        info.streams
     );
 
     // Every step over the same link: it loses frames, or falls behind, or both.

@@ -99,7 +99,7 @@
 //! - `NEW` (0x01): the particle whole: if `FROZEN` (0x20), a byte of the axes frozen
 //!   (bit 0 x, bit 1 y); position as two signed varints, the change from the previous NEW
 //!   record's (from 0 for the first); velocity as two signed varints; unless `SAME_MOTION` (0x40), acceleration x and y and drag as three
-//!   f32; unless `SAME_LOOK` (0x80), start colour as 4 bytes (value x 63.75, so 0 to 4) and
+//!   f32; unless `SAME_LOOK` (0x80), start colour as 4 bytes (value x 31.875, so 0 to 8) and
 //!   size factor f32 (else those of the previous NEW record); final colour as 4 bytes;
 //!   initial life f32; age varint (updates lived; its life is the initial life minus its
 //!   age); size f32. Position and velocity are in units of [`PARTICLE_QUANTUM`] and
@@ -158,8 +158,9 @@ pub const PARTICLE_QUANTUM: f64 = 1.0 / 1024.0;
 pub const PARTICLE_BOUND: f64 = 1.0 / 512.0;
 /// Velocities of particles travel as integers of this many units per second (1/256).
 pub const PARTICLE_VEL_QUANTUM: f64 = 1.0 / 256.0;
-/// A colour component travels as `round(c * COLOR_SCALE)` in a byte: 0 to 4.
-pub const COLOR_SCALE: f32 = 63.75;
+/// A colour component travels as `round(c * COLOR_SCALE)` in a byte: 0 to 8 (the fire
+/// preset's final red reaches 4.5).
+pub const COLOR_SCALE: f32 = 31.875;
 
 pub const MAGIC: &[u8; 3] = b"RCF";
 pub const KIND_DELTA: u8 = 0;
