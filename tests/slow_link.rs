@@ -231,8 +231,9 @@ fn a_viewer_on_a_slow_link_keeps_up_on_the_stream_its_budget_fits() {
             }
         })
     };
-    // Let the fire build and the server measure its streams' rates.
-    std::thread::sleep(Duration::from_secs(3));
+    // Let the fire build and the server measure its streams' rates (the peak of five
+    // whole seconds).
+    std::thread::sleep(Duration::from_secs(6));
     let info = client.info(Duration::from_secs(5)).unwrap();
     let full = info.streams.iter().find(|s| s.every == 1).unwrap();
     assert!(

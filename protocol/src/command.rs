@@ -277,7 +277,8 @@ pub struct WorldInfo {
 pub struct StreamRate {
     /// Steps a frame of the stream stands for (1: every step).
     pub every: u64,
-    /// Bytes the stream's frames took over the last whole second.
+    /// Bytes a second the stream's frames took: the peak of the last five whole seconds
+    /// (a link must carry a stream's bursts).
     pub bytes_per_second: f64,
 }
 

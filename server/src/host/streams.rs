@@ -23,23 +23,36 @@ use ricochet_protocol::frame::FrameEncoder;
 use ricochet_protocol::keys::STREAMS;
 use ricochet_protocol::world as wire;
 
-/// The bytes a stream sent in the current second, and in the last whole one.
+/// How many whole seconds a stream's reported rate is the peak of: a link must carry a
+/// stream's bursts (a fire's births come in bursts), not only its mean.
+const RATE_SECONDS: usize = 5;
+
+/// The bytes a stream sent in the current second, and in the last whole ones.
 #[derive(Clone, Debug)]
 struct Rate {
     since: Instant,
     bytes: u64,
-    per_second: f64,
+    /// The last whole seconds' rates, newest last.
+    seconds: Vec<f64>,
 }
 
 impl Rate {
     fn add(&mut self, bytes: u64, now: Instant) {
         let elapsed = now.duration_since(self.since);
         if elapsed >= Duration::from_secs(1) {
-            self.per_second = self.bytes as f64 / elapsed.as_secs_f64();
+            if self.seconds.len() == RATE_SECONDS {
+                self.seconds.remove(0);
+            }
+            self.seconds.push(self.bytes as f64 / elapsed.as_secs_f64());
             self.bytes = 0;
             self.since = now;
         }
         self.bytes += bytes;
+    }
+
+    /// The highest rate of the last whole seconds.
+    fn peak(&self) -> f64 {
+        self.seconds.iter().copied().fold(0.0, f64::max)
     }
 }
 
@@ -73,7 +86,7 @@ impl Streams {
                     rate: Rate {
                         since: now,
                         bytes: 0,
-                        per_second: 0.0,
+                        seconds: Vec::with_capacity(RATE_SECONDS),
                     },
                 })
                 .collect(),
@@ -133,13 +146,13 @@ impl Streams {
             .resync_frame()
     }
 
-    /// Each stream's bytes over the last whole second.
+    /// Each stream's bytes a second: the peak of the last whole seconds.
     pub fn rates(&self) -> Vec<StreamRate> {
         self.streams
             .iter()
             .map(|s| StreamRate {
                 every: s.every,
-                bytes_per_second: s.rate.per_second,
+                bytes_per_second: s.rate.peak(),
             })
             .collect()
     }
