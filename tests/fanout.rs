@@ -4,8 +4,6 @@
 
 mod common;
 
-use std::process::Command as Process;
-
 use common::*;
 
 /// A figure of a table cell such as `12.9 MB/s`.
@@ -15,27 +13,19 @@ fn number(cell: &str) -> f64 {
 
 #[test]
 fn through_a_router_the_server_sends_each_frame_once() {
-    let dir = temp_dir();
-    let page = dir.path().join("page.md");
-    std::fs::write(
-        &page,
-        "before\n<!-- fanout:begin -->\nold\n<!-- fanout:end -->\nafter\n",
-    )
-    .unwrap();
-    let out = Process::new(bin("ricochet-server"))
-        .args(["fanout", "--viewers", "3", "--seconds", "3"])
-        .args(["--scenes", &scene("")])
-        .arg("--out")
-        .arg(&page)
-        .output()
-        .unwrap();
-    ok(&out);
-    let text = std::fs::read_to_string(&page).unwrap();
-    assert!(
-        text.starts_with("before\n<!-- fanout:begin -->\nMeasured by `ricochet-server fanout"),
-        "{text}"
+    let scenes = scene("");
+    let text = report_page(
+        "fanout",
+        &[
+            "fanout",
+            "--viewers",
+            "3",
+            "--seconds",
+            "3",
+            "--scenes",
+            &scenes,
+        ],
     );
-    assert!(text.ends_with("<!-- fanout:end -->\nafter\n"), "{text}");
     let row = |mode: &str| -> Vec<String> {
         text.lines()
             .find(|l| l.starts_with(&format!("| {mode}")))

@@ -3,35 +3,12 @@
 
 mod common;
 
-use std::process::Command as Process;
-
 use common::*;
 
 #[test]
 fn the_wire_report_writes_its_table_between_the_markers() {
-    let dir = temp_dir();
-    let page = dir.path().join("page.md");
-    std::fs::write(
-        &page,
-        "before\n<!-- wire:begin -->\nold\n<!-- wire:end -->\nafter\n",
-    )
-    .unwrap();
-    let out = Process::new(bin("ricochet-server"))
-        .args(["wire", "--steps", "30", "--scenes", &scene("")])
-        .arg("--out")
-        .arg(&page)
-        .output()
-        .unwrap();
-    ok(&out);
-    let text = std::fs::read_to_string(&page).unwrap();
-    assert!(
-        text.starts_with("before\n<!-- wire:begin -->\nMeasured by `ricochet-server wire"),
-        "{text}"
-    );
-    assert!(
-        text.ends_with("<!-- wire:end -->\nafter\n") && !text.contains("old"),
-        "{text}"
-    );
+    let scenes = scene("");
+    let text = report_page("wire", &["wire", "--steps", "30", "--scenes", &scenes]);
     let rows: Vec<Vec<&str>> = text
         .lines()
         .filter(|l| l.starts_with("| ") && l.contains(".toml"))

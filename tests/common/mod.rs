@@ -201,3 +201,35 @@ pub fn answer_every_query(
         .wait()
         .expect("declare a queryable")
 }
+
+/// Runs `ricochet-server ARGS --out PAGE` on a page whose `name` markers hold old text,
+/// checks the report replaced only that text with its table (the command named first),
+/// and returns the page.
+pub fn report_page(name: &str, args: &[&str]) -> String {
+    let dir = temp_dir();
+    let page = dir.path().join("page.md");
+    std::fs::write(
+        &page,
+        format!("before\n<!-- {name}:begin -->\nold\n<!-- {name}:end -->\nafter\n"),
+    )
+    .unwrap();
+    let out = Process::new(bin("ricochet-server"))
+        .args(args)
+        .arg("--out")
+        .arg(&page)
+        .output()
+        .unwrap();
+    ok(&out);
+    let text = std::fs::read_to_string(&page).unwrap();
+    assert!(
+        text.starts_with(&format!(
+            "before\n<!-- {name}:begin -->\nMeasured by `ricochet-server {name}"
+        )),
+        "{text}"
+    );
+    assert!(
+        text.ends_with(&format!("<!-- {name}:end -->\nafter\n")) && !text.contains("old"),
+        "{text}"
+    );
+    text
+}

@@ -117,13 +117,7 @@ fn main() -> Result<()> {
             out,
         } => {
             let report = ricochet_server::report::hostile::run(&scenes, seconds)?;
-            let table = report.to_markdown();
-            println!("{table}");
-            if let Some(out) = out {
-                ricochet_server::report::splice(&out, "hostile", &table)?;
-                eprintln!("wrote the table of {}", out.display());
-            }
-            Ok(())
+            print_table(&report.to_markdown(), out.as_deref(), "hostile")
         }
         Command::Wire {
             steps,
@@ -132,13 +126,7 @@ fn main() -> Result<()> {
             out,
         } => {
             let report = ricochet_server::report::wire::run(&scenes, steps, keyframe_interval)?;
-            let table = report.to_markdown();
-            println!("{table}");
-            if let Some(out) = out {
-                ricochet_server::report::splice(&out, "wire", &table)?;
-                eprintln!("wrote the table of {}", out.display());
-            }
-            Ok(())
+            print_table(&report.to_markdown(), out.as_deref(), "wire")
         }
         Command::Fanout {
             viewers,
@@ -147,13 +135,7 @@ fn main() -> Result<()> {
             out,
         } => {
             let report = ricochet_server::report::fanout::run(&scenes, viewers, seconds)?;
-            let table = report.to_markdown();
-            println!("{table}");
-            if let Some(out) = out {
-                ricochet_server::report::splice(&out, "fanout", &table)?;
-                eprintln!("wrote the table of {}", out.display());
-            }
-            Ok(())
+            print_table(&report.to_markdown(), out.as_deref(), "fanout")
         }
         Command::Certs { out, hosts, days } => {
             for file in ricochet_server::certs::make(&out, &hosts, days)? {
@@ -162,6 +144,17 @@ fn main() -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// Prints a report's table and, with `out`, writes it between the `name` markers of
+/// that page.
+fn print_table(table: &str, out: Option<&std::path::Path>, name: &str) -> Result<()> {
+    println!("{table}");
+    if let Some(out) = out {
+        ricochet_server::report::splice(out, name, table)?;
+        eprintln!("wrote the table of {}", out.display());
+    }
+    Ok(())
 }
 
 /// A progress bar of this template, its length set by the run.
