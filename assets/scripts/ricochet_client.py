@@ -17,11 +17,13 @@ import argparse
 import json
 import struct
 import sys
+import threading
 import time
 import uuid
 
 PROTOCOL_VERSION = 3
 MAX_STEPS_A_FRAME = 64
+MAX_TOKENS = 4096  # liveliness tokens one query keeps, as the Rust client
 FINE = 2.0 ** -24
 # Position, displacement and acceleration steps, in FINE units.
 POS_STEP, DISP_STEP, ACC_STEP = 1 << 14, 1 << 10, 1 << 6
@@ -317,11 +319,23 @@ def parse_command(words):
 
 
 def servers(session, world, timeout):
-    """The zenoh ids holding the world's liveliness token `ricochet/<world>/alive/<zid>`."""
-    zids = set()
-    for reply in session.liveliness().get(f"ricochet/{world}/alive/*", timeout=timeout):
-        if reply.ok is not None:
+    """The zenoh ids holding the world's liveliness token `ricochet/<world>/alive/<zid>`.
+
+    A callback, not a channel: zenoh hands the tokens it already knows to the query's
+    handler before the query returns, so a bounded channel not yet read (the default)
+    would block for good under a peer holding more tokens than it holds. At most
+    MAX_TOKENS are kept: a peer may declare any number of them."""
+    import zenoh
+    zids, done = set(), threading.Event()
+
+    def take(reply):
+        if reply.ok is not None and len(zids) < MAX_TOKENS:
             zids.add(str(reply.ok.key_expr).rsplit("/", 1)[-1])
+
+    session.liveliness().get(f"ricochet/{world}/alive/*",
+                             handler=zenoh.handlers.Callback(take, done.set), timeout=timeout)
+    # Bounded: the query ends by its timeout at the latest.
+    done.wait(timeout + 0.5)
     return sorted(zids)
 
 

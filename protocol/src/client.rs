@@ -14,6 +14,7 @@
 //! Frames, snapshots and events are taken the same way: each publication the server makes
 //! carries its session's id as its source ([`FrameStream`] drops and counts any other).
 
+use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -173,6 +174,15 @@ impl FrameStream {
     }
 }
 
+/// A request id no other peer can predict: 128 bits from the operating system's generator
+/// (through a thread's generator seeded from it). The server applies a command once per
+/// sender and id and answers a repeat with the first answer, so an id a peer could guess
+/// (a counter) would let a peer that claims this client's sender id send its next id
+/// first: the client's real command would then be "answered" and never applied.
+pub fn request_id() -> String {
+    format!("r{:032x}", rand::random::<u128>())
+}
+
 /// Frames a client holds unread at most before the oldest are dropped.
 pub const FRAME_RING: usize = 4096;
 
@@ -184,8 +194,7 @@ pub struct Client {
     trust: Arc<Trust>,
     /// Commands leave through this publisher; its id names this client as their sender.
     commands: Publisher<'static>,
-    /// Numbers this client's commands (zenoh's source sequence number) and requests
-    /// (their id).
+    /// Numbers this client's messages (zenoh's source sequence number).
     sequence: AtomicU32,
     /// The frame stream this client watches: one frame in this many steps.
     every: u64,
@@ -287,7 +296,7 @@ impl Client {
         timeout: Duration,
         attempts: u32,
     ) -> Result<Reply> {
-        let id = format!("r{}", self.sequence.fetch_add(1, Ordering::Relaxed));
+        let id = request_id();
         let mut body = serde_json::to_value(command).expect("commands serialise");
         body.as_object_mut()
             .expect("a command is a JSON object")
@@ -554,24 +563,52 @@ pub fn list_worlds(session: &Session, timeout: Duration) -> Result<Vec<String>> 
 /// The liveliness tokens matching `key` now, as (world, server's zenoh id), sorted, each
 /// once.
 fn alive_tokens(session: &Session, key: &str, timeout: Duration) -> Result<Vec<(String, String)>> {
-    let replies = session
+    // A callback, not a channel: zenoh hands the tokens it already knows to the query's
+    // handler before the query returns, so a bounded channel nobody reads yet (the default
+    // holds 256) would block for good under a peer holding more tokens than it holds.
+    let found: Arc<Mutex<(BTreeSet<(String, String)>, usize)>> = Arc::default();
+    let (finished, done) = std::sync::mpsc::channel::<()>();
+    let collect = {
+        let found = Arc::clone(&found);
+        // Dropped with the callback when the query ends: the receiver then disconnects.
+        move |reply: zenoh::query::Reply| {
+            let _alive = &finished;
+            if let Ok(sample) = reply.result() {
+                if let Some((world, zid)) = keys::parse_alive(sample.key_expr().as_str()) {
+                    let mut found = found.lock().unwrap_or_else(|e| e.into_inner());
+                    let token = (world.to_string(), zid.to_string());
+                    if found.0.len() < MAX_TOKENS || found.0.contains(&token) {
+                        found.0.insert(token);
+                    } else {
+                        found.1 += 1;
+                    }
+                }
+            }
+        }
+    };
+    session
         .liveliness()
         .get(key)
+        .callback(collect)
         .timeout(timeout)
         .wait()
         .map_err(|e| anyhow!("{key}: {e}"))?;
-    let mut tokens = Vec::new();
-    while let Ok(reply) = replies.recv() {
-        if let Ok(sample) = reply.result() {
-            if let Some((world, zid)) = keys::parse_alive(sample.key_expr().as_str()) {
-                tokens.push((world.to_string(), zid.to_string()));
-            }
-        }
+    // Bounded: the query ends by its timeout at the latest.
+    let _ = done.recv_timeout(timeout + Duration::from_millis(500));
+    let (tokens, more) = std::mem::take(&mut *found.lock().unwrap_or_else(|e| e.into_inner()));
+    if more > 0 {
+        tracing::warn!(
+            key,
+            kept = MAX_TOKENS,
+            more,
+            "more liveliness tokens than a query keeps: some holders were not read"
+        );
     }
-    tokens.sort();
-    tokens.dedup();
-    Ok(tokens)
+    Ok(tokens.into_iter().collect())
 }
+
+/// The most tokens one liveliness query keeps: a peer may declare any number of them.
+pub const MAX_TOKENS: usize = 4096;
 
 /// The refusal of a world whose token several peers hold, naming a few of them: a peer
 /// holding thousands of tokens must not make the error itself a flood.
