@@ -121,8 +121,42 @@ class FrameDecoder:
         self.time = 0.0
         self.stats = {}
         self.synced = False
+        # Key frames dropped because the next delta followed the state before them, and
+        # that state until a delta confirms the key frame (as the Rust decoder).
+        self.dropped_key_frames = 0
+        self.before = None
+
+    def _state(self):
+        return (self.bodies, self.particles, self.emitters, self.frame, self.time, self.stats)
+
+    def _restore(self, state):
+        self.bodies, self.particles, self.emitters, self.frame, self.time, self.stats = state
 
     def apply(self, data):
+        """Applies a frame or a snapshot. A key frame applies at once, but the state it
+        replaced is kept until the next delta: a delta that follows that state instead puts
+        it back and drops the key frame (counted in dropped_key_frames)."""
+        if len(data) < 21 or data[4] != KIND_DELTA:
+            return self._apply_one(data)
+        before = self.before
+        prev = struct.unpack_from("<Q", data, 13)[0]
+        if before is not None and self.synced and prev != self.frame and prev == before[3]:
+            key = self._state()
+            self._restore(before)
+            try:
+                kind = self._apply_one(data)
+            except DecodeError:
+                self._restore(key)
+                raise
+            self.before = None
+            self.dropped_key_frames += 1
+            return kind
+        kind = self._apply_one(data)
+        # The key frame is confirmed by a delta that follows it.
+        self.before = None
+        return kind
+
+    def _apply_one(self, data):
         r = Reader(data)
         if bytes(r.take(3)) != b"RCF":
             raise DecodeError("no RCF magic")
@@ -262,6 +296,8 @@ class FrameDecoder:
         if kind == KIND_STATICS:
             self.statics = bodies
             return kind
+        if kind != KIND_DELTA:
+            self.before = self._state() if self.synced else None
         self.bodies, self.particles, self.emitters = bodies, particles, emitters
         self.frame, self.time, self.stats, self.synced = frame, t, stats, True
         return kind
@@ -458,10 +494,14 @@ def watch(session, world, frames, seconds, timeout):
                 print(f"ignored {ignored} frame(s) from peers that are not the world's server",
                       file=sys.stderr)
             continue
+        dropped = decoder.dropped_key_frames
         try:
             decoder.apply(sample.payload.to_bytes())
         except DecodeError:
             continue
+        if decoder.dropped_key_frames > dropped:
+            print(f"dropped a key frame the stream did not follow ({decoder.dropped_key_frames} so far)",
+                  file=sys.stderr)
         seen += 1
         print(json.dumps(decoder.view()), flush=True)
     sub.undeclare()

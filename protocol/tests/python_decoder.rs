@@ -102,7 +102,20 @@ fn check(scene_file: &str, steps: u64, resync_at: u64, stride: u64) {
         }
         all.push(frame);
     }
-    for payloads in [all, late] {
+    // A key frame that is not the stream's (a fresh encoder's, of the run's last state,
+    // numbered ahead) in the middle of it: both decoders apply it, then drop it at the
+    // next delta.
+    let mut forged = all.clone();
+    let at = (forged.len() / 2..forged.len())
+        .find(|&k| {
+            ricochet_protocol::frame::peek_header(&forged[k])
+                .unwrap()
+                .kind
+                == ricochet_protocol::frame::KIND_DELTA
+        })
+        .expect("a delta frame in the second half");
+    forged.insert(at, encode_frame(&mut FrameEncoder::new(60), &world, 0.0, 0));
+    for (n, payloads) in [all, late, forged].into_iter().enumerate() {
         let mut rust = FrameDecoder::new();
         let mut expected = Vec::new();
         for p in &payloads {
@@ -111,6 +124,7 @@ fn check(scene_file: &str, steps: u64, resync_at: u64, stride: u64) {
                 expected.push(view(&rust));
             }
         }
+        assert_eq!(rust.dropped_key_frames, u64::from(n == 2), "{scene_file}");
         let got = python_views(&payloads);
         assert_eq!(got.len(), expected.len(), "{scene_file}: frames decoded");
         for (g, e) in got.iter().zip(&expected) {

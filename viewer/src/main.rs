@@ -269,6 +269,7 @@ fn run(opts: Opts) -> Result<()> {
     let mut last_frame_at = Instant::now();
     let mut skipped: u64 = 0;
     let mut resyncs: u64 = 0;
+    let mut dropped_key_frames: u64 = 0;
     let mut reported_skips = Instant::now();
     let mut draw_time = Duration::ZERO;
     // Frames decoded since the last drawing.
@@ -350,6 +351,13 @@ fn run(opts: Opts) -> Result<()> {
                 Ok(h) => {
                     applied += 1;
                     sink.log_stats(h.frame, h.time, &h.stats, bytes.len())?;
+                    if decoder.dropped_key_frames > dropped_key_frames {
+                        dropped_key_frames = decoder.dropped_key_frames;
+                        sink.log_note(
+                            &format!("a key frame the stream did not follow was dropped ({dropped_key_frames} so far)"),
+                            "WARN",
+                        )?;
+                    }
                 }
                 Err(DecodeError::Stale { .. }) => {}
                 Err(DecodeError::OutOfSync { held, follows }) => {

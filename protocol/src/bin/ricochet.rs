@@ -338,6 +338,7 @@ fn watch(
     let mut seen = 0u64;
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
+    let mut dropped_key_frames = 0;
     loop {
         if frames.is_some_and(|n| seen >= n) || limit.is_some_and(|l| began.elapsed() >= l) {
             return Ok(0);
@@ -352,6 +353,13 @@ fn watch(
         match decoder.apply(&bytes) {
             Ok(h) => {
                 seen += 1;
+                if decoder.dropped_key_frames > dropped_key_frames {
+                    dropped_key_frames = decoder.dropped_key_frames;
+                    tracing::warn!(
+                        dropped = dropped_key_frames,
+                        "a key frame the stream did not follow was dropped"
+                    );
+                }
                 let s = &h.stats;
                 if json {
                     let bodies: Vec<_> = decoder

@@ -29,6 +29,24 @@ pub struct FrameDecoder {
     pub stats: FrameStats,
     /// Whether a key frame has been applied since the last gap.
     pub synced: bool,
+    /// Key frames dropped because the stream's next delta followed the state held before
+    /// them: a key frame that goes back or jumps ahead of the stream is not the stream's.
+    pub dropped_key_frames: u64,
+    /// The state before the last key frame applied in sync, until a delta confirms it.
+    before: Option<Box<Held>>,
+}
+
+/// The dynamic state a key frame replaces, kept until the next delta shows which of the
+/// two the stream follows.
+#[derive(Clone, Debug)]
+struct Held {
+    bodies: Vec<Body>,
+    particles: Vec<Particle>,
+    emitters: Vec<EmitterIn>,
+    frame: u64,
+    time: f64,
+    dt: f64,
+    stats: FrameStats,
 }
 
 /// The header of a payload.
@@ -105,7 +123,45 @@ impl FrameDecoder {
 
     /// Applies a frame or a snapshot. A delta frame is refused unless it follows the last
     /// frame applied; the state is unchanged by a refused payload.
+    ///
+    /// A key frame applies at once (frame numbers restart after a reset), but the state it
+    /// replaced is kept until the next delta: a delta that follows that state, not the key
+    /// frame, puts it back and drops the key frame ([`FrameDecoder::dropped_key_frames`]).
+    /// So a key frame that is not the stream's (numbered far ahead, or back) costs a
+    /// receiver one frame, not its sync.
     pub fn apply(&mut self, bytes: &[u8]) -> Result<Header, DecodeError> {
+        let header = peek_header(bytes)?;
+        if header.kind != KIND_DELTA {
+            return self.apply_one(bytes);
+        }
+        let stray = self.synced
+            && header.prev != self.frame
+            && self.before.as_ref().is_some_and(|h| h.frame == header.prev);
+        if let Some(mut held) = self.before.take_if(|_| stray) {
+            // The delta follows the state before the key frame: it comes back, and the key
+            // frame goes, unless the delta itself is refused.
+            self.exchange(&mut held);
+            return match self.apply_one(bytes) {
+                Ok(h) => {
+                    self.dropped_key_frames += 1;
+                    Ok(h)
+                }
+                Err(e) => {
+                    self.exchange(&mut held);
+                    self.before = Some(held);
+                    Err(e)
+                }
+            };
+        }
+        let applied = self.apply_one(bytes);
+        if applied.is_ok() {
+            // The key frame is confirmed by a delta that follows it.
+            self.before = None;
+        }
+        applied
+    }
+
+    fn apply_one(&mut self, bytes: &[u8]) -> Result<Header, DecodeError> {
         let mut r = Reader::new(bytes);
         let header = read_header(&mut r)?;
         // A key frame always applies (frame numbers restart after a reset); a delta frame
@@ -175,7 +231,17 @@ impl FrameDecoder {
             return Ok(header);
         }
         if !delta {
-            self.bodies.clear();
+            let held = Held {
+                bodies: std::mem::take(&mut self.bodies),
+                particles: std::mem::take(&mut self.particles),
+                emitters: std::mem::take(&mut self.emitters),
+                frame: self.frame,
+                time: self.time,
+                dt: self.dt,
+                stats: self.stats,
+            };
+            // The state just replaced (a real key frame then a stray one: the real one's).
+            self.before = self.synced.then(|| Box::new(held));
         }
         // Every body without a record moves on as predicted.
         records::fold(&mut self.bodies, bodies, patch_body, |b| {
@@ -190,6 +256,17 @@ impl FrameDecoder {
         self.stats = header.stats;
         self.synced = true;
         Ok(header)
+    }
+
+    /// Swaps the dynamic state held with `other`.
+    fn exchange(&mut self, other: &mut Held) {
+        std::mem::swap(&mut self.bodies, &mut other.bodies);
+        std::mem::swap(&mut self.particles, &mut other.particles);
+        std::mem::swap(&mut self.emitters, &mut other.emitters);
+        std::mem::swap(&mut self.frame, &mut other.frame);
+        std::mem::swap(&mut self.time, &mut other.time);
+        std::mem::swap(&mut self.dt, &mut other.dt);
+        std::mem::swap(&mut self.stats, &mut other.stats);
     }
 
     /// The body with this id, dynamic or static.

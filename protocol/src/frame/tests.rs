@@ -446,3 +446,53 @@ fn a_receiver_stays_within_the_stated_bound_and_free_flight_costs_next_to_nothin
         with_record.len()
     );
 }
+
+/// A key frame that is not the stream's (another encoder's, numbered far ahead or back)
+/// applies, but the stream's next delta follows the state before it: that state comes
+/// back, the key frame is dropped and counted, and the receiver stays in sync with the
+/// stream, bit for bit with one that never saw it. The stream's own key frames are kept.
+#[test]
+fn a_key_frame_the_stream_does_not_follow_is_dropped_at_the_next_delta() {
+    let cloud = Cloud::default();
+    let stream = |frames: std::ops::Range<u64>, shift: f64| -> Vec<Vec<u8>> {
+        let mut enc = FrameEncoder::new(5);
+        frames
+            .map(|k| {
+                let x = k as f64 * 0.25 + shift;
+                enc.encode(
+                    k,
+                    k as f64 * DT,
+                    DT,
+                    &FrameStats::default(),
+                    &[],
+                    &[body(0, "a", [x, 1.0]), body(1, "b", [x, 3.0])],
+                    &cloud.view(),
+                )
+            })
+            .collect()
+    };
+    let real = stream(0..20, 0.0);
+    let ahead = stream(1 << 62..(1 << 62) + 1, 50.0).remove(0);
+    let back = stream(2..3, -50.0).remove(0);
+    let mut clean = FrameDecoder::new();
+    let mut dec = FrameDecoder::new();
+    for (k, frame) in real.iter().enumerate() {
+        clean.apply(frame).unwrap();
+        if k == 7 || k == 13 {
+            // A forged key frame applies at once...
+            let forged = if k == 7 { &ahead } else { &back };
+            dec.apply(frame).unwrap();
+            dec.apply(forged).unwrap();
+            assert_ne!(dec.frame, clean.frame);
+            continue;
+        }
+        dec.apply(frame).unwrap();
+        // ...and is gone at the stream's next delta.
+        assert_eq!(dec.frame, clean.frame, "frame {k}");
+        assert_eq!(dec.bodies, clean.bodies, "frame {k}");
+        assert!(dec.synced);
+    }
+    assert_eq!(dec.dropped_key_frames, 2);
+    // The stream's own key frames (every fifth) were all kept.
+    assert_eq!(clean.dropped_key_frames, 0);
+}
