@@ -793,3 +793,65 @@ fn hundreds_of_spare_tokens_do_not_hold_up_a_client() {
     );
     drop(tokens);
 }
+
+/// One session floods snapshot queries, each claiming one of 20 made-up sender ids: a claim
+/// that names no session connected to the server is charged to the anonymous sender, so
+/// the flood is answered at one sender's rate, not twenty's; a real client's query is
+/// still answered.
+#[test]
+fn made_up_sender_ids_share_one_bucket() {
+    let server = Server::start("emitters.toml", "claimed", &[]);
+    server.wait_up();
+    let flooder = server.client();
+    let key = flooder.keys().snapshot.clone();
+    // Ids of sessions that exist but are connected to nothing: a made-up claim.
+    let (made_up, _isolated): (Vec<_>, Vec<_>) = (0..20)
+        .map(|_| {
+            let mut config = zenoh::Config::default();
+            config
+                .insert_json5("scouting/multicast/enabled", "false")
+                .unwrap();
+            config.insert_json5("listen/endpoints", "[]").unwrap();
+            let session = zenoh::open(config).wait().expect("an isolated session");
+            let id = session
+                .declare_publisher("elsewhere")
+                .wait()
+                .expect("a publisher")
+                .id();
+            (id, session)
+        })
+        .unzip();
+    let began = Instant::now();
+    let pending: Vec<_> = (0..600u32)
+        .map(|k| {
+            flooder
+                .session()
+                .get(key.as_str())
+                .source_info(zenoh::sample::SourceInfo::new(made_up[k as usize % 20], k))
+                .timeout(Duration::from_secs(20))
+                .wait()
+                .expect("a query goes out")
+        })
+        .collect();
+    let sent_in = began.elapsed().as_secs_f64();
+    let mut answered = 0usize;
+    for replies in pending {
+        while let Ok(reply) = replies.recv() {
+            if reply.result().is_ok_and(|s| !s.payload().is_empty()) {
+                answered += 1;
+            }
+        }
+    }
+    // One sender's bucket: 100 at once, 50 a second.
+    let allowed = 100.0 + 50.0 * sent_in;
+    eprintln!("{answered} of 600 queries under 20 made-up ids answered in {sent_in:.2} s");
+    assert!(
+        (answered as f64) <= allowed + 10.0,
+        "{answered} of 600 queries answered in {sent_in:.2} s: the made-up ids had buckets of their own (one allows {allowed:.0})"
+    );
+    let other = server.client();
+    let snapshot = other
+        .snapshot(Duration::from_secs(10))
+        .expect("a connected client's query is answered");
+    assert!(!snapshot.is_empty());
+}

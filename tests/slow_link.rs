@@ -35,22 +35,6 @@ const BUDGET: &str = "600k";
 const MAX_LAG: Duration = Duration::from_millis(500);
 const WATCH_SECONDS: f64 = 10.0;
 
-fn sh(args: &[&str]) -> Result<(), String> {
-    let out = Process::new(args[0])
-        .args(&args[1..])
-        .output()
-        .map_err(|e| format!("{}: {e}", args.join(" ")))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!(
-            "{}: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr).trim()
-        ))
-    }
-}
-
 /// A namespace joined to this one by a rate-limited veth pair; removed when dropped.
 struct SlowLink {
     ns: String,

@@ -566,7 +566,9 @@ fn alive_tokens(session: &Session, key: &str, timeout: Duration) -> Result<Vec<(
     // A callback, not a channel: zenoh hands the tokens it already knows to the query's
     // handler before the query returns, so a bounded channel nobody reads yet (the default
     // holds 256) would block for good under a peer holding more tokens than it holds.
-    let found: Arc<Mutex<(BTreeSet<(String, String)>, usize)>> = Arc::default();
+    // The (world, zid) pairs kept, and how many more there were.
+    type Found = (BTreeSet<(String, String)>, usize);
+    let found: Arc<Mutex<Found>> = Arc::default();
     let (finished, done) = std::sync::mpsc::channel::<()>();
     let collect = {
         let found = Arc::clone(&found);

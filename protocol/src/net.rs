@@ -104,6 +104,9 @@ impl NetworkArgs {
 /// default of 1 GiB.
 pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
 
+/// Sessions a server or router takes at most, in all (zenoh's default is 1000).
+pub const MAX_SESSIONS: usize = 256;
+
 /// Where and how a session connects.
 #[derive(Clone, Debug, Default)]
 pub struct Network {
@@ -190,6 +193,14 @@ impl Network {
                 &mut config,
                 "transport/link/rx/max_message_size",
                 serde_json::json!(MAX_MESSAGE_BYTES),
+            )?;
+            // Sessions a listening process takes at most, in all (zenoh's default is
+            // 1000): a bound on what peers can make it hold. Per address, the operator's
+            // firewall bounds them (docs/security.md), which zenoh cannot.
+            set(
+                &mut config,
+                "transport/unicast/max_sessions",
+                serde_json::json!(MAX_SESSIONS),
             )?;
         }
         Ok(config)

@@ -233,3 +233,21 @@ pub fn report_page(name: &str, args: &[&str]) -> String {
     );
     text
 }
+
+/// Runs a command (`ip`, `tc`, `nft`: the network tests' set-up); its error says which
+/// and why.
+pub fn sh(args: &[&str]) -> Result<(), String> {
+    let out = Process::new(args[0])
+        .args(&args[1..])
+        .output()
+        .map_err(|e| format!("{}: {e}", args.join(" ")))?;
+    if out.status.success() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{}: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr).trim()
+        ))
+    }
+}

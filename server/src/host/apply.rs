@@ -45,6 +45,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
     let Incoming {
         payload,
         sender,
+        key,
         query,
     } = incoming;
     let frame = host.world.frame();
@@ -56,7 +57,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
         }
         None => {
             if let Ok(command) = &parsed {
-                if let Err(over) = budgets.admit(&sender, host.price(command), Instant::now()) {
+                if let Err(over) = budgets.admit(&key, host.price(command), Instant::now()) {
                     host.health.over_budget += 1;
                     tracing::debug!(frame, "command over budget: {over}");
                     if let Some(query) = query {
@@ -114,7 +115,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
                 error: reply.error.clone(),
             });
             let answer = Answer::new(&reply, due_at_step);
-            budgets.charge(&sender, began.elapsed());
+            budgets.charge(&key, began.elapsed());
             // A command refused because the journal could not be written is tried afresh
             // when sent again: the disk may have room by then.
             if let (Some(id), false) = (id, journaled_as == Journaled::Failed) {

@@ -17,9 +17,11 @@
 //! sender's own.
 //!
 //! A sender is the zenoh id its session declares in zenoh's source info, which Ricochet's
-//! clients set; commands without one share a bucket. The id is the sender's own claim: a
-//! hostile peer may change it at will, so the buckets share capacity fairly among honest
-//! clients, while the queue bounds and the per-frame bounds keep the step safe from any.
+//! clients set; commands without one share a bucket. The id is the sender's own claim, so
+//! a claim keeps buckets of its own only when it names a session connected to the server
+//! ([`Peers::bucket`]); any other claim shares the anonymous sender's. The buckets share
+//! capacity fairly among honest clients, while the queue bounds and the per-frame bounds
+//! keep the step safe from any.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -31,6 +33,7 @@ use zenoh::query::Query;
 use zenoh::sample::Sample;
 
 use super::outbox::Outbox;
+use super::peers::Peers;
 
 /// Who sent a command: the zenoh id its session declares, if any.
 pub type Sender = Option<String>;
@@ -41,7 +44,10 @@ pub const MAX_SENDERS: usize = 4096;
 /// A command or request waiting for the frame boundary.
 pub struct Incoming {
     pub payload: Vec<u8>,
+    /// The sender the message claims: its answers are remembered under it.
     pub sender: Sender,
+    /// The sender its buckets and budget are charged to ([`Peers::bucket`]).
+    pub key: Sender,
     /// The request to answer; none for a fire-and-forget command.
     pub query: Option<Query>,
 }
@@ -146,11 +152,14 @@ pub struct Inbox {
     outbox: Outbox,
     /// The frame commands now take effect in, for refusals sent from here.
     frame: AtomicU64,
+    /// Which claimed senders are connected sessions (their buckets are their own).
+    peers: Peers,
 }
 
 impl Inbox {
-    pub fn new(limits: InboxLimits, outbox: Outbox) -> Inbox {
+    pub fn new(limits: InboxLimits, outbox: Outbox, peers: Peers) -> Inbox {
         Inbox {
+            peers,
             queues: Mutex::new(Queues::default()),
             limits,
             turned: Turned::default(),
@@ -204,8 +213,9 @@ impl Inbox {
             );
             return self.refuse(query, frame, error, &self.turned.unanswered.too_large);
         }
+        let key = self.peers.bucket(&sender);
         let mut q = self.lock();
-        if !take_token(&mut q.buckets, &sender, &self.limits) {
+        if !take_token(&mut q.buckets, &key, &self.limits) {
             drop(q);
             self.turned.rate_limited.fetch_add(1, Ordering::Relaxed);
             let error = format!(
@@ -215,7 +225,7 @@ impl Inbox {
             return self.refuse(query, frame, error, &self.turned.unanswered.rate_limited);
         }
         let limits = self.limits;
-        let queued = q.waiting.get(&sender).map_or(0, VecDeque::len);
+        let queued = q.waiting.get(&key).map_or(0, VecDeque::len);
         if queued >= limits.queue
             || q.count >= limits.queue.saturating_mul(4)
             || q.bytes + payload.len() > limits.queue_bytes
@@ -231,14 +241,15 @@ impl Inbox {
         q.count += 1;
         q.bytes += payload.len();
         if queued == 0 {
-            q.turns.push_back(sender.clone());
+            q.turns.push_back(key.clone());
         }
         q.waiting
-            .entry(sender.clone())
+            .entry(key.clone())
             .or_default()
             .push_back(Incoming {
                 payload,
                 sender,
+                key,
                 query,
             });
     }
@@ -264,7 +275,9 @@ impl Inbox {
 
     /// A query for what the server already has (zenoh's queryable callback).
     pub fn offer_query(&self, ask: Ask, query: Query) {
-        let sender = query.source_info().map(|s| s.source_id().zid().to_string());
+        let sender = self
+            .peers
+            .bucket(&query.source_info().map(|s| s.source_id().zid().to_string()));
         let per_sender = InboxLimits {
             rate: self.limits.query_rate,
             burst: self.limits.query_burst,
@@ -348,7 +361,7 @@ mod tests {
             queue,
             ..InboxLimits::default()
         };
-        Inbox::new(limits, Outbox::detached())
+        Inbox::new(limits, Outbox::detached(), Peers::trusting())
     }
 
     fn take_all(inbox: &Inbox) -> Vec<(Sender, u8)> {

@@ -23,6 +23,7 @@ pub mod hosted;
 pub mod inbox;
 pub mod journal;
 pub mod outbox;
+pub mod peers;
 pub mod streams;
 
 use std::io::Write;
@@ -127,6 +128,9 @@ pub struct HostOptions {
     pub max_frame_bytes: u64,
     /// Per-sender rates and queue bounds (the command size bound is `limits`').
     pub inbox: InboxLimits,
+    /// Every claimed sender id keeps buckets of its own, connected or not
+    /// ([`peers::Peers::trusting`]; `--sender-ids claimed`).
+    pub trust_claimed_senders: bool,
     /// How much of the stepping thread's time commands may take ([`budget`]).
     pub budget: BudgetLimits,
     /// Journal every accepted command and stepped frame to this file ([`journal`]).
@@ -161,6 +165,7 @@ impl HostOptions {
             max_rate: 1000.0,
             max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
             inbox: InboxLimits::default(),
+            trust_claimed_senders: false,
             budget: BudgetLimits::default(),
             journal: None,
             resume: None,
@@ -337,12 +342,17 @@ pub fn run(opts: HostOptions) -> Result<()> {
         .wait()
         .map_err(z)?;
     let outbox = Outbox::start(events);
+    let (mut peers, _transports) = peers::Peers::watch(&session).map_err(z)?;
+    if opts.trust_claimed_senders {
+        peers = peers::Peers::trusting();
+    }
     let inbox = Arc::new(Inbox::new(
         InboxLimits {
             command_bytes: opts.limits.command_bytes as usize,
             ..opts.inbox
         },
         outbox.clone(),
+        peers,
     ));
     let _commands = session
         .declare_subscriber(&keys.cmd)

@@ -12,6 +12,9 @@
 //!   senders with valid commands at their rate limit. Measured: the most bytes the
 //!   journal and its checkpoints held on disk at once (sampled every 20 ms). Switched
 //!   off: no checkpoints (`--journal-bytes` and `--checkpoint-after-ms` at their largest).
+//! - **Made-up sender ids**: one session floods `snapshot` queries, each claiming one of
+//!   20 sender ids of sessions connected to nothing. Measured: queries answered a second.
+//!   Switched off: `--sender-ids claimed` (every claim keeps buckets of its own).
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -22,6 +25,7 @@ use anyhow::{anyhow, Result};
 use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, Direction, ServerCommand};
 use ricochet_protocol::net::{Mode, Network};
+use zenoh::Wait;
 
 use super::soak::process::ServerProcess;
 use super::soak::{free_endpoint, wait_answered};
@@ -189,6 +193,66 @@ fn journal_flood(dir: &Path, scenes: &Path, seconds: f64, defended: bool) -> Res
     Ok(most.max(bytes_on_disk(&sub, "world.journal")))
 }
 
+/// Snapshot queries answered a second while one session floods them under 20 made-up
+/// sender ids.
+fn claimed_ids(scenes: &Path, seconds: f64, defended: bool) -> Result<f64> {
+    let mut args = vec![
+        "--scene".to_string(),
+        scenes.join("emitters.toml").display().to_string(),
+    ];
+    if !defended {
+        args.extend(["--sender-ids", "claimed"].map(str::to_string));
+    }
+    let world = "hostile-claims";
+    let (_server, network) = serve(world, &args)?;
+    let flooder = Client::open(&network, world)?;
+    // Ids of sessions that exist but are connected to nothing: made-up claims.
+    let mut isolated = Vec::new();
+    let mut ids = Vec::new();
+    for _ in 0..20 {
+        let mut config = zenoh::Config::default();
+        for (key, value) in [
+            ("scouting/multicast/enabled", "false"),
+            ("listen/endpoints", "[]"),
+        ] {
+            config
+                .insert_json5(key, value)
+                .map_err(|e| anyhow!("zenoh configuration {key}: {e}"))?;
+        }
+        let session = zenoh::open(config).wait().map_err(|e| anyhow!("{e}"))?;
+        let publisher = session
+            .declare_publisher("elsewhere")
+            .wait()
+            .map_err(|e| anyhow!("{e}"))?;
+        ids.push(publisher.id());
+        isolated.push((session, publisher));
+    }
+    let key = flooder.keys().snapshot.clone();
+    let began = Instant::now();
+    let (mut answered, mut sent) = (0u64, 0u32);
+    while began.elapsed().as_secs_f64() < seconds {
+        let mut pending = Vec::new();
+        for _ in 0..60 {
+            sent += 1;
+            let source = zenoh::sample::SourceInfo::new(ids[sent as usize % ids.len()], sent);
+            let get = flooder
+                .session()
+                .get(key.as_str())
+                .source_info(source)
+                .timeout(Duration::from_secs(5))
+                .wait()
+                .map_err(|e| anyhow!("{e}"))?;
+            pending.push(get);
+        }
+        for replies in pending {
+            while let Ok(reply) = replies.recv() {
+                answered += u64::from(reply.result().is_ok());
+            }
+        }
+    }
+    Ok(answered as f64 / began.elapsed().as_secs_f64())
+}
+
 /// Runs every attack for `seconds` each, with its defence and without.
 pub fn run(scenes: &Path, seconds: f64) -> Result<HostileReport> {
     let dir = tempfile::tempdir()?;
@@ -208,6 +272,13 @@ pub fn run(scenes: &Path, seconds: f64) -> Result<HostileReport> {
             measure: "the most bytes the journal and its checkpoints held on disk at once",
             defended: mib(journal_flood(dir.path(), scenes, seconds, true)?),
             undefended: mib(journal_flood(dir.path(), scenes, seconds, false)?),
+        },
+        Attack {
+            name: "one session floods `snapshot` queries, each claiming one of 20 made-up sender ids",
+            defence: "a claim naming no session connected to the server shares the anonymous sender's buckets (`--sender-ids connected`)",
+            measure: "queries answered a second (one sender may make 50 a second, 100 at once)",
+            defended: format!("{:.0}", claimed_ids(scenes, seconds, true)?),
+            undefended: format!("{:.0}", claimed_ids(scenes, seconds, false)?),
         },
     ];
     Ok(HostileReport { attacks, seconds })

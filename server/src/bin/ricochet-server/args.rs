@@ -103,6 +103,13 @@ pub struct RunArgs {
     /// Commands a sender may send at once above its rate.
     #[arg(long, default_value_t = 500.0, value_name = "N")]
     pub sender_burst: f64,
+    /// Which claimed sender ids keep rate buckets and budgets of their own: `connected`,
+    /// only ids of sessions connected to the server (any other claim is the anonymous
+    /// sender's, so one process cannot claim many); `claimed`, every id as claimed (for
+    /// clients that reach the server through other peers; through a router, claims are
+    /// taken as they are whatever this says).
+    #[arg(long, value_enum, default_value_t = SenderIds::Connected, value_name = "WHICH")]
+    pub sender_ids: SenderIds,
     /// Fraction of real time the commands of all senders may take of the stepping
     /// thread, over time: each command is priced by what it touches before it runs and
     /// charged what it took (docs/security.md, "The cost of a command").
@@ -383,6 +390,7 @@ impl RunArgs {
             dump: self.dump,
             max_rate: self.max_rate,
             max_frame_bytes: self.max_frame_bytes,
+            trust_claimed_senders: self.sender_ids == SenderIds::Claimed,
             budget: BudgetLimits {
                 share: self.command_share,
                 sender_share: self.sender_share,
@@ -488,4 +496,11 @@ pub struct SceneTradeoffArgs {
     /// Seconds the reference may take in all.
     #[arg(long, default_value_t = 300.0, requires = "scene")]
     pub reference_budget: f64,
+}
+
+/// Which claimed sender ids keep buckets of their own (`--sender-ids`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SenderIds {
+    Connected,
+    Claimed,
 }
