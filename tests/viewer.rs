@@ -200,6 +200,70 @@ fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
     );
 }
 
+/// A viewer whose link fits only the server's sparsest stream (one frame in 8 steps, one
+/// particle in 8) draws every step in between, interpolated from the frames on either
+/// side, so its drawing keeps the world's step rate; the figures are those of the frames
+/// it received.
+#[test]
+fn a_viewer_on_a_reduced_rate_stream_draws_every_step_in_between() {
+    let dir = temp_dir();
+    let server = Server::start("emitters.toml", "sparse", &[]);
+    resume(&server.client());
+    let file = dir.path().join("sparse.rrd");
+    let drawn_frames = 100u64;
+    let out = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "sparse", "--connect", &server.endpoint, "--save"])
+        .arg(&file)
+        .args([
+            "--max-bandwidth",
+            "1",
+            "--frames",
+            &drawn_frames.to_string(),
+        ])
+        .args(["--wait", "20", "--idle-exit", "20"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .output()
+        .expect("ricochet-viewer runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rrd = read_rrd(&file);
+    let frames_of = |path: &str| -> Vec<u64> {
+        rrd["entities"][path]["frames"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{path} missing"))
+            .iter()
+            .map(|v| v.as_u64().unwrap())
+            .collect()
+    };
+    let drawn = frames_of("/world/bodies/hero");
+    let received = frames_of("/stats/step_ms");
+    assert_eq!(drawn.len() as u64, drawn_frames, "{drawn:?}");
+    // Received: one frame in 8 steps.
+    assert!(
+        received.windows(2).all(|w| w[1] - w[0] == 8),
+        "received frames: {received:?}"
+    );
+    // Drawn: every step from the first drawing on.
+    assert!(
+        drawn.windows(2).all(|w| w[1] == w[0] + 1),
+        "drawn frames: {drawn:?}"
+    );
+    assert!(
+        received.len() as u64 <= drawn_frames / 8 + 3,
+        "{received:?}"
+    );
+    let particles = frames_of("/world/particles");
+    assert!(
+        particles.iter().filter(|f| !received.contains(f)).count() > 50,
+        "particles drawn between the frames received: {particles:?}"
+    );
+}
+
 /// A decoded screenshot: RGBA8 pixels, width, height.
 type Image = (Vec<u8>, u32, u32);
 

@@ -333,6 +333,17 @@ impl Timeline {
         (mapped.0, mapped.1, restarted)
     }
 
+    /// Maps a frame of the current run that may come before the last mapped (a step
+    /// between two frames of a reduced-rate stream, drawn after the newer one arrived):
+    /// never a new run.
+    pub fn within(&self, frame: u64, time: f64) -> (u64, f64) {
+        let time = time + self.time_offset;
+        (
+            self.frame_of(frame),
+            if time.is_finite() { time } else { 0.0 },
+        )
+    }
+
     /// The timeline frame of a server frame of the current run (for events), at most
     /// `i64::MAX` (what Rerun's sequence timelines hold).
     pub fn frame_of(&self, frame: u64) -> u64 {

@@ -12,6 +12,7 @@
 //! with zenoh's drop congestion control. A gap in the frames (a frame lost on the way)
 //! is repaired by asking the server for a key frame of its state now.
 
+mod between;
 mod blueprint;
 mod draw;
 mod sink;
@@ -26,6 +27,7 @@ use ricochet_protocol::frame::DecodeError;
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, NetworkArgs};
 
+use crate::between::Between;
 use crate::sink::WorldSink;
 
 /// Draws a Ricochet world in Rerun: bounds, bodies, particles, the step's figures and the
@@ -263,8 +265,11 @@ fn run(opts: Opts) -> Result<()> {
     // key frame or a resync brings the decoder back.
     let mut lost_since: Option<Instant> = None;
     sink.log_statics(&decoder.statics)?;
-    sink.log_stats(decoder.frame, decoder.time, &decoder.stats, 0)?;
-    sink.draw(&decoder)?;
+    // On a reduced-rate stream the state comes with the stream's next key frame.
+    if decoder.synced {
+        sink.log_stats(decoder.frame, decoder.time, &decoder.stats, 0)?;
+        sink.draw(&decoder)?;
+    }
 
     let mut last_frame_at = Instant::now();
     let mut skipped: u64 = 0;
@@ -275,6 +280,10 @@ fn run(opts: Opts) -> Result<()> {
     // Frames decoded since the last drawing.
     let mut pending = 0u64;
     let mut last_draw = Instant::now();
+    // On a reduced-rate stream: the steps between its last two frames, drawn as they come
+    // due; and the newest frame, which the next one is interpolated from.
+    let mut between: Option<Between> = None;
+    let mut newest: Option<ricochet_protocol::frame::FrameDecoder> = None;
     let began = Instant::now();
     while opts.frames.is_none_or(|n| sink.frames_drawn < n) {
         while let Ok(Some(sample)) = events.try_recv() {
@@ -302,6 +311,7 @@ fn run(opts: Opts) -> Result<()> {
                 match client.catch_up(Duration::from_secs(2)) {
                     Ok(fresh) => {
                         decoder = fresh;
+                        (between, newest) = (None, None);
                         new_statics = true;
                         lost_since = None;
                         let what = if now.0 != source.0 {
@@ -332,7 +342,26 @@ fn run(opts: Opts) -> Result<()> {
             sink.log_statics(&decoder.statics)?;
         }
 
-        let Ok(Some(first)) = frames.recv_timeout(Duration::from_millis(200)) else {
+        // Between a reduced-rate stream's frames: draw each step as it comes due.
+        if let Some(b) = between.as_mut() {
+            let now = Instant::now();
+            if let Some(step) = b
+                .due(now)
+                .filter(|_| last_draw.elapsed() >= min_draw_interval)
+            {
+                last_draw = now;
+                sink.draw_between(&b.draw(step))?;
+                draw_time += last_draw.elapsed();
+            }
+        }
+        let wait = between
+            .as_ref()
+            .and_then(|b| b.wait(Instant::now()))
+            .map_or(Duration::from_millis(200), |w| {
+                w.max(min_draw_interval.saturating_sub(last_draw.elapsed()))
+                    .clamp(Duration::from_millis(1), Duration::from_millis(200))
+            });
+        let Ok(Some(first)) = frames.recv_timeout(wait) else {
             if idle_exit.is_some_and(|limit| last_frame_at.elapsed() >= limit) {
                 sink.log_note("the world stopped sending frames", "WARN")?;
                 break;
@@ -396,6 +425,17 @@ fn run(opts: Opts) -> Result<()> {
             }
         }
         pending += applied;
+        if client.every() > 1 && applied > 0 && decoder.synced {
+            // A reduced-rate stream's frame: the steps since the last one are drawn as
+            // they come due, this frame last (the frame before drawn whole first).
+            let before = between.take().map(Between::into_newest).or(newest.take());
+            between = Between::new(before, &decoder, Instant::now());
+            newest = Some(decoder.clone());
+            if between.is_some() {
+                pending = 0;
+                continue;
+            }
+        }
         if pending == 0 || last_draw.elapsed() < min_draw_interval {
             continue;
         }

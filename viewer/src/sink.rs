@@ -169,6 +169,19 @@ impl WorldSink {
     /// Draws the state the decoder holds now: bodies per group, particles, emitters.
     pub fn draw(&mut self, d: &FrameDecoder) -> Result<()> {
         self.set_time(d.frame, d.time)?;
+        self.draw_state(d)
+    }
+
+    /// Draws a step between two frames of a reduced-rate stream (`between`), which comes
+    /// after the newer frame's figures were logged: of the current run whatever its number.
+    pub fn draw_between(&mut self, d: &FrameDecoder) -> Result<()> {
+        let (frame, time) = self.timeline.within(d.frame, d.time);
+        self.rec.set_time_sequence("frame", frame as i64);
+        self.rec.set_duration_secs("sim_time", time);
+        self.draw_state(d)
+    }
+
+    fn draw_state(&mut self, d: &FrameDecoder) -> Result<()> {
         let groups = self.info.as_ref().map_or(&[][..], |i| &i.groups[..]);
         log_outlines(
             &self.rec,
