@@ -14,6 +14,10 @@
 //!
 //! The emitter of particles-100k releases its 100 000 particles at the start and they
 //! burn out within four seconds: a feeder starts it again every four seconds.
+//!
+//! Viewers stand for viewers on other machines: on a machine of two cores or more the
+//! server is pinned to core 0 and this process (its viewers) and the router to the others
+//! (`taskset`), so they do not take the server's core.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -39,6 +43,17 @@ impl Drop for RouterProcess {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
+}
+
+/// Pins every thread of process `pid`, and the threads they start, to `cpus` (`taskset -a
+/// -p -c`, util-linux). Returns whether it took.
+fn pin(pid: u32, cpus: &str) -> bool {
+    Process::new("taskset")
+        .args(["-a", "-p", "-c", cpus, &pid.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
 }
 
 /// CPU seconds (user and system) a process has used.
@@ -99,28 +114,55 @@ pub struct FanoutReport {
     pub viewers: usize,
     pub seconds: f64,
     pub runs: Vec<Run>,
+    /// The machine's processor and cores.
+    pub cpu: String,
+    /// Which cores the server, the viewers and the router ran on.
+    pub placement: String,
 }
 
 /// Runs particles-100k with `viewers` viewers for `seconds`, directly and through a router.
 pub fn run(scenes: &Path, viewers: usize, seconds: f64) -> Result<FanoutReport> {
     let scene = scenes.join("particles-100k.toml");
     anyhow::ensure!(scene.exists(), "no scene {}", scene.display());
+    // The machine as it is before this process is pinned to some of its cores.
+    let cpu = super::cpu();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let others = match cores {
+        0..=2 => "1".to_string(),
+        n => format!("1-{}", n - 1),
+    };
+    let pinned = (cores >= 2 && pin(std::process::id(), &others)).then_some(others);
     let runs = vec![
-        one(&scene, viewers, seconds, false)?,
-        one(&scene, viewers, seconds, true)?,
+        one(&scene, viewers, seconds, false, pinned.as_deref())?,
+        one(&scene, viewers, seconds, true, pinned.as_deref())?,
     ];
     Ok(FanoutReport {
         viewers,
         seconds,
         runs,
+        cpu,
+        placement: match &pinned {
+            Some(others) => {
+                format!("the server pinned to core 0, the viewers and the router to core {others}")
+            }
+            None => "server, viewers and router sharing the cores".into(),
+        },
     })
 }
 
-fn one(scene: &Path, viewers: usize, seconds: f64, routed: bool) -> Result<Run> {
+/// One mode's run; `pinned`: the cores the viewers and the router are pinned to, the
+/// server then to core 0.
+fn one(
+    scene: &Path,
+    viewers: usize,
+    seconds: f64,
+    routed: bool,
+    pinned: Option<&str>,
+) -> Result<Run> {
     let world = if routed { "fanout-routed" } else { "fanout" };
     let endpoint = free_endpoint()?;
     let scene_arg = scene.display().to_string();
-    let (_router, server, network) = if routed {
+    let (router, server, network) = if routed {
         let router = RouterProcess(
             Process::new(std::env::current_exe()?)
                 .args(["router", "--listen", &endpoint])
@@ -157,6 +199,12 @@ fn one(scene: &Path, viewers: usize, seconds: f64, routed: bool) -> Result<Run> 
         )?;
         (None, server, Network::client(Mode::Peer, vec![endpoint]))
     };
+    if let Some(others) = pinned {
+        pin(server.pid(), "0");
+        if let Some(router) = &router {
+            pin(router.0.id(), others);
+        }
+    }
     let control = Client::open(&network, world)?;
     wait_answered(&control, Duration::from_secs(60))?;
 
@@ -285,12 +333,13 @@ impl FanoutReport {
     pub fn to_markdown(&self) -> String {
         let mut out = format!(
             "Measured by `{}` ({} viewers decoding every frame of particles-100k, its \
-             emitter started again every 4 s, {} s of each mode; {}; lag: when a frame \
-             reached a viewer after it reached the first viewer to get it):\n\n",
+             emitter started again every 4 s, {} s of each mode; {}; {}; lag: when a \
+             frame reached a viewer after it reached the first viewer to get it):\n\n",
             super::command_line(),
             self.viewers,
             self.seconds,
-            super::cpu(),
+            self.cpu,
+            self.placement,
         );
         out.push_str(
             "| viewers meet the server | server CPU (cores) | server sent | frames \
