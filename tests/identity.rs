@@ -1,0 +1,260 @@
+//! Who a message is from, end to end with real processes on loopback: a client's request
+//! ids cannot be guessed by another peer, a peer holding hundreds of a world's liveliness
+//! tokens holds up no client (Rust or Python), and sender ids a session makes up share one
+//! sender's rate instead of each having its own. Every wait is bounded.
+
+mod common;
+
+use std::process::Command as Process;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use common::*;
+use ricochet_protocol::client::Client;
+use ricochet_protocol::command::{Action, Command, ServerCommand};
+use ricochet_protocol::net::{Mode, Network};
+use zenoh::Wait;
+
+/// A peer that sees a client's requests (here a queryable on the world's `rpc` key: in the
+/// open deployment any peer may declare one) claims the client's sender id and sends, under
+/// the request ids it guesses come next, a `pause` of its own. The server applies a command
+/// once per sender and id and answers a repeat with the first answer: a guessed id would
+/// make the client's real `step` "answered" by the forger's `pause` and never applied. The
+/// client's ids are random, so every step is applied.
+#[test]
+fn request_ids_cannot_be_guessed_and_pre_answered_by_another_peer() {
+    let server = Server::start("impulse.toml", "preanswered", &[]);
+    server.wait_up();
+    // The snooper listens too, and the client connects to it and to the server.
+    let snooper_endpoint = free_endpoint();
+    let mut snooper_network = server.network();
+    snooper_network.listen = vec![snooper_endpoint.clone()];
+    let snooper = Client::open(&snooper_network, "preanswered").expect("snooper session");
+    let both = Network::client(Mode::Peer, vec![server.endpoint.clone(), snooper_endpoint]);
+    let client = Client::open(&both, "preanswered").expect("client session");
+    let seen: Arc<std::sync::Mutex<Vec<(zenoh::session::EntityGlobalId, String)>>> = Arc::default();
+    let _snoop = {
+        let seen = seen.clone();
+        snooper
+            .session()
+            .declare_queryable(snooper.keys().rpc.clone())
+            .callback(move |query| {
+                let id = query
+                    .payload()
+                    .and_then(|p| serde_json::from_slice::<serde_json::Value>(&p.to_bytes()).ok())
+                    .and_then(|v| v.get("id").and_then(|i| i.as_str()).map(str::to_string));
+                if let (Some(source), Some(id)) = (query.source_info(), id) {
+                    seen.lock().unwrap().push((*source.source_id(), id));
+                }
+            })
+            .wait()
+            .expect("declare the snooping queryable")
+    };
+    // Bounded: until the snooper has seen one of the client's requests.
+    let began = Instant::now();
+    let (victim, last) = loop {
+        assert!(request(&client, Command::Server(ServerCommand::Pause)).ok);
+        if let Some(seen) = seen.lock().unwrap().last().cloned() {
+            break seen;
+        }
+        assert!(began.elapsed() < TIMEOUT, "the snooper never saw a request");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // The guesses: the ids that follow the one seen, as a counter would give them.
+    let digits: String = last.chars().filter(char::is_ascii_digit).collect();
+    let next = if last.len() == digits.len() + 1 {
+        digits.parse::<u128>().unwrap_or(0)
+    } else {
+        u128::from_str_radix(last.trim_start_matches('r'), 16).unwrap_or(0)
+    };
+    let guesses: Vec<String> = (1..=40u128)
+        .flat_map(|k| {
+            [
+                format!("r{}", next.wrapping_add(k)),
+                format!("r{:032x}", next.wrapping_add(k)),
+            ]
+        })
+        .collect();
+    for (k, guess) in guesses.iter().enumerate() {
+        let forged = serde_json::json!({"do": "pause", "id": guess}).to_string();
+        let replies = snooper
+            .session()
+            .get(snooper.keys().rpc.as_str())
+            .source_info(zenoh::sample::SourceInfo::new(victim, k as u32))
+            .payload(forged)
+            .timeout(TIMEOUT)
+            .wait()
+            .expect("a forged request goes out");
+        // The server's answer to the forgery (applied: it is a pause).
+        while replies.recv_timeout(TIMEOUT).ok().flatten().is_some() {}
+    }
+    let paused_at = |client: &Client| {
+        let reply = request(client, Command::Server(ServerCommand::Pause));
+        assert!(reply.ok, "{reply:?}");
+        reply.frame
+    };
+    let start = paused_at(&client);
+    for _ in 0..20 {
+        let reply = request(&client, Command::Server(ServerCommand::Step { n: 1 }));
+        assert!(reply.ok, "{reply:?}");
+    }
+    // Bounded: until the world has run the steps asked for (a step runs after its reply).
+    let began = Instant::now();
+    let mut frame = paused_at(&client);
+    while frame < start + 20 && began.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(50));
+        frame = paused_at(&client);
+    }
+    assert_eq!(
+        frame,
+        start + 20,
+        "20 steps asked from frame {start}: some were answered without being applied"
+    );
+    let id = ricochet_protocol::client::request_id();
+    assert!(id.len() == 33 && id != ricochet_protocol::client::request_id());
+}
+
+/// One peer holds hundreds of the world's liveliness tokens (under made-up ids) and
+/// answers nothing: a client still finds the server (the one holder that answers), its
+/// requests, info and frames come within their timeouts, and its error on a world no
+/// server holds names a few of the holders, not all.
+#[test]
+fn hundreds_of_spare_tokens_do_not_hold_up_a_client() {
+    let server = Server::start("impulse.toml", "crowded", &[]);
+    server.wait_up();
+    // The flooder listens too, and the client connects to it and to the server.
+    let flooder_endpoint = free_endpoint();
+    let mut flooder_network = server.network();
+    flooder_network.listen = vec![flooder_endpoint.clone()];
+    let flooder = Client::open(&flooder_network, "crowded").expect("flooder session");
+    let tokens: Vec<_> = (0..300)
+        .map(|k| {
+            flooder
+                .session()
+                .liveliness()
+                .declare_token(flooder.keys().alive_token(&format!("{k:032x}")))
+                .wait()
+                .unwrap()
+        })
+        .collect();
+    let both = Network::client(
+        Mode::Peer,
+        vec![server.endpoint.clone(), flooder_endpoint.clone()],
+    );
+    // On a thread, so that a client held up for good fails the test instead of hanging it.
+    let (finished, done) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let client = Client::open(&both, "crowded").expect("client session");
+        let began = Instant::now();
+        while client.servers(TIMEOUT).unwrap().len() < 301 {
+            assert!(began.elapsed() < TIMEOUT, "the spare tokens never showed");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        for _ in 0..5 {
+            let reply = request(&client, Command::World(Action::Deselect));
+            assert!(reply.ok, "{reply:?}");
+            let info = client.info(TIMEOUT).expect("the server's info");
+            assert_eq!(info.scene, "impulse.toml");
+        }
+        let frames = client.frames().unwrap();
+        let began = Instant::now();
+        while frames
+            .recv_timeout(Duration::from_millis(200))
+            .unwrap()
+            .is_none()
+        {
+            assert!(began.elapsed() < TIMEOUT, "no frame taken from the server");
+        }
+        let _ = finished.send(());
+    });
+    match done.recv_timeout(Duration::from_secs(60)) {
+        Ok(()) => {}
+        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => panic!("the client failed"),
+        Err(e) => panic!("the client was held up by the tokens: {e}"),
+    }
+    // The Python client too, within a bound.
+    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    let mut child = Process::new(&python)
+        .arg(root().join("assets/scripts/ricochet_client.py"))
+        .args(["--world", "crowded", "--connect", &server.endpoint])
+        .args(["--connect", &flooder_endpoint, "send", "deselect"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("python3 runs");
+    let began = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if began.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("the Python client was held up by the tokens");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let out = ok(&child.wait_with_output().unwrap());
+    assert!(
+        out.contains("\"ok\":true") || out.contains("\"ok\": true"),
+        "{out}"
+    );
+    drop(tokens);
+}
+
+/// One session floods snapshot queries, each claiming one of 20 made-up sender ids: a claim
+/// that names no session connected to the server is charged to the anonymous sender, so
+/// the flood is answered at one sender's rate, not twenty's; a real client's query is
+/// still answered.
+#[test]
+fn made_up_sender_ids_share_one_bucket() {
+    let server = Server::start("emitters.toml", "claimed", &[]);
+    server.wait_up();
+    let flooder = server.client();
+    let key = flooder.keys().snapshot.clone();
+    // Ids of sessions that exist but are connected to nothing: a made-up claim.
+    let (made_up, _isolated): (Vec<_>, Vec<_>) = (0..20)
+        .map(|_| {
+            let mut config = zenoh::Config::default();
+            config
+                .insert_json5("scouting/multicast/enabled", "false")
+                .unwrap();
+            config.insert_json5("listen/endpoints", "[]").unwrap();
+            let session = zenoh::open(config).wait().expect("an isolated session");
+            let id = session
+                .declare_publisher("elsewhere")
+                .wait()
+                .expect("a publisher")
+                .id();
+            (id, session)
+        })
+        .unzip();
+    let began = Instant::now();
+    let pending: Vec<_> = (0..600u32)
+        .map(|k| {
+            flooder
+                .session()
+                .get(key.as_str())
+                .source_info(zenoh::sample::SourceInfo::new(made_up[k as usize % 20], k))
+                .timeout(Duration::from_secs(20))
+                .wait()
+                .expect("a query goes out")
+        })
+        .collect();
+    let sent_in = began.elapsed().as_secs_f64();
+    let mut answered = 0usize;
+    for replies in pending {
+        while let Ok(reply) = replies.recv() {
+            if reply.result().is_ok_and(|s| !s.payload().is_empty()) {
+                answered += 1;
+            }
+        }
+    }
+    // One sender's bucket: 100 at once, 50 a second.
+    let allowed = 100.0 + 50.0 * sent_in;
+    eprintln!("{answered} of 600 queries under 20 made-up ids answered in {sent_in:.2} s");
+    assert!(
+        (answered as f64) <= allowed + 10.0,
+        "{answered} of 600 queries answered in {sent_in:.2} s: the made-up ids had buckets of their own (one allows {allowed:.0})"
+    );
+    let other = server.client();
+    let snapshot = other
+        .snapshot(Duration::from_secs(10))
+        .expect("a connected client's query is answered");
+    assert!(!snapshot.is_empty());
+}
