@@ -14,7 +14,7 @@ fn the_wire_report_writes_its_table_between_the_markers() {
         .filter(|l| l.starts_with("| ") && l.contains(".toml"))
         .map(|l| l.split('|').map(str::trim).collect())
         .collect();
-    assert_eq!(rows.len(), 9, "{text}");
+    assert_eq!(rows.len(), 10, "{text}");
     for row in &rows {
         // Bodies and particles a frame, then bytes a frame: a resting world still sends
         // its header.
@@ -25,4 +25,10 @@ fn the_wire_report_writes_its_table_between_the_markers() {
     }
     let pyramid = rows.iter().find(|r| r[1] == "pyramid-100.toml").unwrap();
     assert_eq!(pyramid[3], "5050", "{pyramid:?}");
+    // A row run under a setting names it.
+    assert!(
+        rows.iter()
+            .any(|r| r[1] == "suite/rain.toml `--set impulse_iterations=4`"),
+        "{text}"
+    );
 }
