@@ -224,27 +224,9 @@ fn made_up_sender_ids_share_one_bucket() {
             (id, session)
         })
         .unzip();
-    let began = Instant::now();
-    let pending: Vec<_> = (0..600u32)
-        .map(|k| {
-            flooder
-                .session()
-                .get(key.as_str())
-                .source_info(zenoh::sample::SourceInfo::new(made_up[k as usize % 20], k))
-                .timeout(Duration::from_secs(20))
-                .wait()
-                .expect("a query goes out")
-        })
-        .collect();
-    let sent_in = began.elapsed().as_secs_f64();
-    let mut answered = 0usize;
-    for replies in pending {
-        while let Ok(reply) = replies.recv() {
-            if reply.result().is_ok_and(|s| !s.payload().is_empty()) {
-                answered += 1;
-            }
-        }
-    }
+    let (answered, sent_in) = flood_queries(&flooder, &key, 600, |k| {
+        Some(zenoh::sample::SourceInfo::new(made_up[k as usize % 20], k))
+    });
     // One sender's bucket: 100 at once, 50 a second.
     let allowed = 100.0 + 50.0 * sent_in;
     eprintln!("{answered} of 600 queries under 20 made-up ids answered in {sent_in:.2} s");

@@ -412,27 +412,7 @@ fn a_flood_of_queries_is_answered_at_the_senders_rate() {
     server.wait_up();
     let flooder = server.client();
     let key = flooder.keys().snapshot.clone();
-    let began = Instant::now();
-    let pending: Vec<_> = (0..600)
-        .map(|_| {
-            flooder
-                .session()
-                .get(key.as_str())
-                .timeout(Duration::from_secs(20))
-                .wait()
-                .expect("a query goes out")
-        })
-        .collect();
-    let sent_in = began.elapsed().as_secs_f64();
-    let mut answered = 0usize;
-    for replies in pending {
-        // A dropped query ends with no reply; an answered one has the snapshot.
-        while let Ok(reply) = replies.recv() {
-            if reply.result().is_ok_and(|s| !s.payload().is_empty()) {
-                answered += 1;
-            }
-        }
-    }
+    let (answered, sent_in) = flood_queries(&flooder, &key, 600, |_| None);
     let allowed = 100.0 + 50.0 * sent_in;
     eprintln!("{answered} of 600 snapshot queries answered, sent in {sent_in:.2} s");
     assert!(

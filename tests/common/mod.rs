@@ -251,3 +251,37 @@ pub fn sh(args: &[&str]) -> Result<(), String> {
         ))
     }
 }
+
+/// Sends `n` queries on `key` at once from `client`'s session, query `k` with the source
+/// `source(k)` claims (none: the session's own), and waits for them all: how many were
+/// answered with a payload (a dropped query ends with no reply), and the seconds sending
+/// took.
+pub fn flood_queries(
+    client: &Client,
+    key: &str,
+    n: u32,
+    source: impl Fn(u32) -> Option<zenoh::sample::SourceInfo>,
+) -> (usize, f64) {
+    use zenoh::Wait;
+    let began = Instant::now();
+    let pending: Vec<_> = (0..n)
+        .map(|k| {
+            let get = client.session().get(key).timeout(Duration::from_secs(20));
+            match source(k) {
+                Some(info) => get.source_info(info).wait(),
+                None => get.wait(),
+            }
+            .expect("a query goes out")
+        })
+        .collect();
+    let sent_in = began.elapsed().as_secs_f64();
+    let mut answered = 0;
+    for replies in pending {
+        while let Ok(reply) = replies.recv() {
+            if reply.result().is_ok_and(|s| !s.payload().is_empty()) {
+                answered += 1;
+            }
+        }
+    }
+    (answered, sent_in)
+}

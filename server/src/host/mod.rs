@@ -342,10 +342,12 @@ pub fn run(opts: HostOptions) -> Result<()> {
         .wait()
         .map_err(z)?;
     let outbox = Outbox::start(events);
-    let (mut peers, _transports) = peers::Peers::watch(&session).map_err(z)?;
-    if opts.trust_claimed_senders {
-        peers = peers::Peers::trusting();
-    }
+    let (peers, _transports) = if opts.trust_claimed_senders {
+        (peers::Peers::trusting(), None)
+    } else {
+        let (peers, listener) = peers::Peers::watch(&session).map_err(z)?;
+        (peers, Some(listener))
+    };
     let inbox = Arc::new(Inbox::new(
         InboxLimits {
             command_bytes: opts.limits.command_bytes as usize,
