@@ -285,13 +285,14 @@ pub struct StreamRate {
 impl WorldInfo {
     /// The fullest stream whose measured rate fits `bits_per_second`: the stream that
     /// carries every step when it fits, else the tier of fewest steps a frame that does;
-    /// the sparsest when none fits.
+    /// the sparsest when none fits. A rate of 0 is not measured yet (a server in its first
+    /// second; every frame has a header), so it is not taken to fit.
     pub fn stream_for(&self, bits_per_second: f64) -> u64 {
         let mut streams: Vec<&StreamRate> = self.streams.iter().collect();
         streams.sort_by_key(|s| s.every);
         streams
             .iter()
-            .find(|s| s.bytes_per_second * 8.0 <= bits_per_second)
+            .find(|s| s.bytes_per_second > 0.0 && s.bytes_per_second * 8.0 <= bits_per_second)
             .or(streams.last())
             .map_or(1, |s| s.every)
     }
@@ -411,6 +412,28 @@ impl<'a> Replay<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A budget picks the fullest stream that fits; a stream not yet measured (rate 0, a
+    /// server in its first second) is not taken to fit, so a slow link starts sparse.
+    #[test]
+    fn a_budget_picks_the_fullest_measured_stream_that_fits() {
+        let info = |rates: [f64; 4]| -> WorldInfo {
+            let streams: Vec<_> = [1, 2, 4, 8]
+                .iter()
+                .zip(rates)
+                .map(|(every, b)| serde_json::json!({"every": every, "bytes_per_second": b}))
+                .collect();
+            serde_json::from_value(serde_json::json!({"scene": "s", "bounds": [[0, 0], [1, 1]],
+                "dt": 0.1, "groups": [], "generation": 0, "streams": streams}))
+            .unwrap()
+        };
+        let measured = info([1000.0, 500.0, 250.0, 125.0]);
+        assert_eq!(measured.stream_for(8000.0), 1);
+        assert_eq!(measured.stream_for(3000.0), 4);
+        assert_eq!(measured.stream_for(10.0), 8);
+        assert_eq!(info([0.0; 4]).stream_for(8.0), 8);
+        assert_eq!(info([0.0, 0.0, 250.0, 125.0]).stream_for(1e9), 4);
+    }
 
     #[test]
     fn actions_read_as_json_a_person_can_type() {
