@@ -109,6 +109,56 @@ const EXPECTED: &[(&str, &str)] = &[
         "zero-mass",
         "935d939cc87c56f7ed44e3c147ce5fba90a6ffbfa7809c09f71fad6bbd2d7da8",
     ),
+    // The suite of scene kinds (assets/scenes/suite/), recorded when it joined this
+    // test, before the contact search lost its branches (the same bits after).
+    (
+        "suite/bullets",
+        "93cdf6606db35e441976f252619ff5e292a6991db0aa60b92492405da0d50080",
+    ),
+    (
+        "suite/column-60",
+        "b1143a79d09ed89e8f731b65e5cb2aac3bd2e369c87680ddaf64f81db3571924",
+    ),
+    (
+        "suite/crowded-box",
+        "c04e998b00d5028d0326a1ad7f3b651b66c486b36d17e039d3cf4547e8e74fec",
+    ),
+    (
+        "suite/far-pyramid",
+        "fdcf68893a4716d9564d3f3b5c15145ae3467484e039d88332190cb99f35e182",
+    ),
+    (
+        "suite/heavy-on-light",
+        "ec818108dacdc6d91ace23886f63c983b07995acd6f48829997c9922e023d85a",
+    ),
+    (
+        "suite/masses-doubling",
+        "ca055ee69ece60df8153ea55ebe4ff5dccc43fc5886455dd91c46fc33a3738ab",
+    ),
+    (
+        "suite/overlap-third",
+        "3dac78e1f98dd75f9598e5b25951fb4d0a0618de0b8b41cf4a1594619fa8d542",
+    ),
+    (
+        "suite/plank",
+        "fd1724623ff36991dd2dcdc133763faebf152c5ad9dd8897b1fc5e3693225d6d",
+    ),
+    (
+        "suite/pyramid-100",
+        "a862b1b53bfeff6646db05475c41239ba7bf5c7dc5468cf437981a5dc8bedc3a",
+    ),
+    (
+        "suite/pyramids-small",
+        "c2d5004663f7dc628f3feb6b67481137fdbd96d466044a88e8e3cc32de8064f2",
+    ),
+    (
+        "suite/rain",
+        "218d3ca4d9fc006bb268897ee2f3093ddc5ed5282fc13fd31f49560717b006ec",
+    ),
+    (
+        "suite/smash",
+        "aedcd63abf6d91fbfb7e890dd1136b2d9a7c08f9c92712687b00b1872afb924c",
+    ),
 ];
 
 /// The chapter demos' input log: frame, action as a client sends it.
@@ -206,14 +256,19 @@ fn digest_restoring(name: &str, restore_at: &[u64]) -> String {
     h.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// The scenes of `assets/scenes/` and of its suite of scene kinds (as `suite/NAME`).
 fn shipped_scenes() -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(scenes_dir())
-        .expect("assets/scenes")
-        .filter_map(|e| {
-            let name = e.ok()?.file_name().into_string().ok()?;
-            name.strip_suffix(".toml").map(str::to_string)
-        })
-        .collect();
+    let mut names = Vec::new();
+    for (dir, prefix) in [("", ""), ("suite", "suite/")] {
+        names.extend(
+            std::fs::read_dir(scenes_dir().join(dir))
+                .expect("assets/scenes")
+                .filter_map(|e| {
+                    let name = e.ok()?.file_name().into_string().ok()?;
+                    name.strip_suffix(".toml").map(|n| format!("{prefix}{n}"))
+                }),
+        );
+    }
     names.sort();
     names
 }

@@ -404,9 +404,10 @@ pub fn solve_frame(
         slot,
         slotted,
         buckets,
+        pushed,
         ..
     } = buffers;
-    passes::store(bodies, pairs, movers, sb, buckets, flagged);
+    passes::store(bodies, pairs, movers, sb, slotted, buckets, pushed, flagged);
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
     }

@@ -161,12 +161,16 @@ pub(super) fn restitution(sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) -
 
 /// The movers' velocities and moves back into the world, each pair's impulses kept for
 /// the next frame, and the bodies a contact pushed flagged collided (listed in `flagged`).
+/// `slotted` names each solver body's world body; `pushed` is reused.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn store(
     bodies: &mut [Body],
     pairs: &mut [Pair],
     movers: &[u32],
     sb: &[SolverBody],
+    slotted: &[u32],
     buckets: &[Vec<Contact>],
+    pushed: &mut Vec<bool>,
     flagged: &mut Vec<u32>,
 ) {
     for (&i, s) in movers.iter().zip(sb.iter()) {
@@ -174,19 +178,25 @@ pub(super) fn store(
         body.vel = s.vel;
         body.pos += s.delta;
     }
+    // Which solver bodies a contact pushed, marked by slot (a small array) rather than on
+    // the world's bodies, which are then visited once each.
+    pushed.clear();
+    pushed.resize(sb.len(), false);
     for c in buckets.iter().flatten() {
         let pair = &mut pairs[c.pair as usize];
         pair.normal = c.normal;
         pair.normal_impulse = c.normal_impulse;
         pair.tangent_impulse = c.tangent_impulse;
         if c.normal_impulse > 0.0 {
-            for i in [pair.a, pair.b] {
-                let body = &mut bodies[i as usize];
-                if !body.collided {
-                    body.collided = true;
-                    flagged.push(i);
-                }
-            }
+            pushed[c.a as usize] = true;
+            pushed[c.b as usize] = true;
+        }
+    }
+    for (&i, _) in slotted.iter().zip(pushed.iter()).filter(|(_, &p)| p) {
+        let body = &mut bodies[i as usize];
+        if !body.collided {
+            body.collided = true;
+            flagged.push(i);
         }
     }
 }
@@ -274,11 +284,21 @@ fn velocity_pass(
     measure: bool,
 ) -> Option<f64> {
     if measure {
-        Some(in_blocks(team, sb, buckets, |b, c| {
-            solve_contact::<true>(b, c, args)
-        }))
+        Some(in_blocks(
+            team,
+            sb,
+            buckets,
+            #[inline(always)]
+            |b, c| solve_contact::<true>(b, c, args),
+        ))
     } else {
-        in_blocks(team, sb, buckets, |b, c| solve_contact::<false>(b, c, args));
+        in_blocks(
+            team,
+            sb,
+            buckets,
+            #[inline(always)]
+            |b, c| solve_contact::<false>(b, c, args),
+        );
         None
     }
 }
