@@ -314,11 +314,11 @@ fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
 /// are several blocks, a group of neighbouring blocks each), then of the boundary;
 /// returns the largest of its results.
 ///
-/// Two blocks a thread runs are interleaved, a contact of one then a contact of the
-/// other: they touch different bodies, so the processor overlaps the two instead of
-/// waiting on each contact's result for the next (consecutive contacts of one block
-/// share a body). The bits are those of one block after the other (four-way interleaving
-/// measured no faster).
+/// Four blocks a thread runs are interleaved, a contact of each in turn (two when the
+/// thread has two or three): they touch different bodies, so the processor overlaps them
+/// instead of waiting on each contact's result for the next (consecutive contacts of one
+/// block share a body). The bits are those of one block after the other. On pyramid-100
+/// (8 blocks), four ways ran 4% faster than two, eight no faster than four.
 #[inline(always)]
 fn in_blocks(
     team: &Team,
@@ -331,21 +331,40 @@ fn in_blocks(
     let n = team.size().min(blocks.len());
     let run = |group: &mut [Vec<Contact>]| {
         let mut largest = 0.0_f64;
-        for two in group.chunks_mut(2) {
-            let (x, y) = match two {
-                [x, y] => (x.as_mut_slice(), y.as_mut_slice()),
-                [x] => (x.as_mut_slice(), &mut [][..]),
-                _ => unreachable!("chunks of one or two"),
+        let mut solve = |c: &mut Contact| largest = largest.max(work(bodies, c));
+        for chunk in group.chunks_mut(4) {
+            // The rows that four blocks (or two of three) all have, interleaved; then the
+            // rest of each block.
+            let ways = match chunk.len() {
+                4 => 4,
+                2 | 3 => 2,
+                _ => 0,
             };
-            let common = x.len().min(y.len());
-            let (x, x_rest) = x.split_at_mut(common);
-            let (y, y_rest) = y.split_at_mut(common);
-            for (p, q) in x.iter_mut().zip(y.iter_mut()) {
-                largest = largest.max(work(bodies, p));
-                largest = largest.max(work(bodies, q));
+            let common = chunk[..ways].iter().map(Vec::len).min().unwrap_or(0);
+            match chunk {
+                [w, x, y, z] => {
+                    let rows = w[..common]
+                        .iter_mut()
+                        .zip(x[..common].iter_mut())
+                        .zip(y[..common].iter_mut().zip(z[..common].iter_mut()));
+                    for ((p, q), (r, s)) in rows {
+                        solve(p);
+                        solve(q);
+                        solve(r);
+                        solve(s);
+                    }
+                }
+                [x, y, ..] => {
+                    for (p, q) in x[..common].iter_mut().zip(y[..common].iter_mut()) {
+                        solve(p);
+                        solve(q);
+                    }
+                }
+                _ => {}
             }
-            for c in x_rest.iter_mut().chain(y_rest.iter_mut()) {
-                largest = largest.max(work(bodies, c));
+            for (k, block) in chunk.iter_mut().enumerate() {
+                let done = if k < ways { common } else { 0 };
+                block[done..].iter_mut().for_each(&mut solve);
             }
         }
         largest
