@@ -264,6 +264,9 @@ pub struct SolverBuffers {
     /// The helper threads of the passes, kept from frame to frame (see [`team`]).
     #[serde(skip)]
     crew: team::Crew,
+    /// Contacts of the last frame (0 after a restore: the bits do not depend on it).
+    #[serde(skip)]
+    last_contacts: usize,
     /// Buckets of the runs of pairs after the first when contacts are found on several
     /// threads.
     #[serde(skip)]
@@ -343,22 +346,34 @@ pub fn solve_frame(
         }
     };
     // One block has nothing to split: the frame stays on the calling thread (no helper
-    // for a small world that asked for threads). Otherwise the world's crew finds the
-    // contacts and runs every pass, each split among threads already running (see
-    // [`team`]).
-    // Fewer candidate pairs than a split's worth (`parallel::MIN_SPLIT`) stay on one
-    // thread too: their passes are shorter than what the hand-over costs (the suite's
-    // rain, about 900 contacts, ran at 0.8 of one thread's speed on two).
+    // for a small world that asked for threads). Otherwise the world keeps a crew of
+    // threads (see [`team`]), which finds the contacts and runs every pass, each split
+    // among threads already running, when there is a split's worth of work
+    // (`parallel::MIN_SPLIT`): the contact search when there are as many candidate pairs
+    // and the last frame had as many contacts, the passes when this frame has. Less work
+    // stays on the calling thread, its passes shorter than what the hand-over costs (the
+    // suite's rain, 12 000 candidate pairs and 1 200 contacts, ran at 0.76 of one
+    // thread's speed on two when its candidate pairs alone decided). The crew is kept
+    // either way: starting threads again costs more than a frame.
     let members = match blocks::block_count(movers.len()) {
         1 => 1,
-        _ if pairs.len() < crate::parallel::MIN_SPLIT => 1,
         blocks => crate::parallel::effective(params.threads).min(blocks),
     };
-    let team = buffers.crew.team(members);
+    let crew = buffers.crew.team(members);
+    let alone = team::Team::new(1);
+    let split = |work: usize| {
+        if work < crate::parallel::MIN_SPLIT {
+            &alone
+        } else {
+            &*crew
+        }
+    };
     {
-        let team = &*team;
-        let found = prepare::prepare(bodies, pairs, params, buffers, movers, &gains, team);
+        let searching = split(pairs.len().min(buffers.last_contacts));
+        let found = prepare::prepare(bodies, pairs, params, buffers, movers, &gains, searching);
         (report.contacts, report.deepest) = (found.touching, found.deepest);
+        buffers.last_contacts = buffers.buckets.iter().map(Vec::len).sum();
+        let team = split(buffers.last_contacts);
         let SolverBuffers {
             bodies: sb,
             accel: gain,

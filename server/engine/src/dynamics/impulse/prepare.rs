@@ -40,6 +40,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         cut_scratch,
         pushed: _,
         crew: _,
+        last_contacts: _,
     } = buffers;
     if slot.len() < bodies.len() {
         slot.resize(bodies.len(), UNSLOTTED);

@@ -58,7 +58,7 @@ unsafe impl Sync for Team {}
 unsafe impl Send for Team {}
 
 impl Team {
-    fn new(size: usize) -> Team {
+    pub(super) fn new(size: usize) -> Team {
         Team {
             size,
             epoch: AtomicU64::new(0),
