@@ -40,12 +40,23 @@ impl Between {
         self.to
     }
 
-    /// The step due at `now`, if not drawn yet.
-    pub fn due(&self, now: Instant) -> Option<u64> {
+    /// The step to draw at `now`, if one is due and not drawn yet: the latest due, or
+    /// with `in_order` the one after the last drawn (a recording keeps every step however
+    /// late its process runs; a live view keeps up with the present).
+    pub fn due(&self, now: Instant, in_order: bool) -> Option<u64> {
         let elapsed = now.saturating_duration_since(self.arrived).as_secs_f64();
         let step = self.from.frame + 1 + (elapsed / self.to.dt) as u64;
         let step = step.min(self.to.frame);
-        (step > self.drawn).then_some(step)
+        match (step > self.drawn, in_order) {
+            (true, true) => Some(self.drawn + 1),
+            (true, false) => Some(step),
+            (false, _) => None,
+        }
+    }
+
+    /// The steps not drawn yet, each marked drawn as it is taken.
+    pub fn rest(&mut self) -> impl Iterator<Item = FrameDecoder> + '_ {
+        (self.drawn + 1..=self.to.frame).map(|step| self.draw(step))
     }
 
     /// How long until the next step is due (zero when one is, `None` when all are drawn).
@@ -142,11 +153,11 @@ mod tests {
         dec.apply(&frame(&mut enc, 8, 8.0)).unwrap();
         let t0 = Instant::now();
         let mut between = Between::new(Some(from), &dec, t0).expect("eight steps apart");
-        assert_eq!(between.due(t0), Some(1));
+        assert_eq!(between.due(t0, false), Some(1));
         let mut drawn = Vec::new();
         for k in 0..10u32 {
             let now = t0 + Duration::from_secs_f64(DT * f64::from(k) + 1e-6);
-            if let Some(step) = between.due(now) {
+            if let Some(step) = between.due(now, false) {
                 let d = between.draw(step);
                 assert_eq!(d.frame, step);
                 drawn.push((step, d.bodies[0].pos()[0]));
@@ -164,5 +175,26 @@ mod tests {
         far.frame = 100;
         assert!(Between::new(Some(dec.clone()), &far, t0).is_none());
         assert!(Between::new(Some(far), &dec, t0).is_none());
+    }
+
+    /// Looked at late, a live view draws the latest step due and a recording the next one
+    /// after the last it drew; a recording's rest is every step it did not draw.
+    #[test]
+    fn a_late_look_skips_to_the_present_live_and_keeps_every_step_recorded() {
+        let mut enc = FrameEncoder::new(100);
+        let mut dec = FrameDecoder::new();
+        dec.apply(&frame(&mut enc, 0, 0.0)).unwrap();
+        let from = dec.clone();
+        dec.apply(&frame(&mut enc, 8, 8.0)).unwrap();
+        let t0 = Instant::now();
+        let mut between = Between::new(Some(from), &dec, t0).expect("eight steps apart");
+        let late = t0 + Duration::from_secs_f64(DT * 3.5);
+        assert_eq!(between.due(late, false), Some(4));
+        assert_eq!(between.due(late, true), Some(1));
+        between.draw(1);
+        assert_eq!(between.due(late, true), Some(2));
+        let rest: Vec<u64> = between.rest().map(|d| d.frame).collect();
+        assert_eq!(rest, (2..=8).collect::<Vec<u64>>());
+        assert_eq!(between.due(late, true), None);
     }
 }

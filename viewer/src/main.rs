@@ -346,7 +346,7 @@ fn run(opts: Opts) -> Result<()> {
         if let Some(b) = between.as_mut() {
             let now = Instant::now();
             if let Some(step) = b
-                .due(now)
+                .due(now, min_draw_interval.is_zero())
                 .filter(|_| last_draw.elapsed() >= min_draw_interval)
             {
                 last_draw = now;
@@ -428,6 +428,13 @@ fn run(opts: Opts) -> Result<()> {
         if client.every() > 1 && applied > 0 && decoder.synced {
             // A reduced-rate stream's frame: the steps since the last one are drawn as
             // they come due, this frame last (the frame before drawn whole first).
+            // A recording (no drawing rate to keep) draws every step: those of the last
+            // frame its process was too late for come first.
+            if let Some(b) = between.as_mut().filter(|_| min_draw_interval.is_zero()) {
+                for d in b.rest() {
+                    sink.draw_between(&d)?;
+                }
+            }
             let before = between.take().map(Between::into_newest).or(newest.take());
             between = Between::new(before, &decoder, Instant::now());
             newest = Some(decoder.clone());
