@@ -142,17 +142,24 @@ mod tests {
         )
     }
 
-    /// A body that moved from 0 to 8 over a stream frame of 8 steps is drawn at 1, 2, ...
-    /// at the steps in between, each step due `dt` after the one before.
-    #[test]
-    fn the_steps_between_two_frames_are_drawn_on_a_straight_line_as_they_come_due() {
+    /// The steps between a frame where a body is at x = 0 and one 8 steps later where it
+    /// is at x = 8 (that frame's decoder), arrived at the instant returned.
+    fn eight_steps() -> (FrameDecoder, Between, Instant) {
         let mut enc = FrameEncoder::new(100);
         let mut dec = FrameDecoder::new();
         dec.apply(&frame(&mut enc, 0, 0.0)).unwrap();
         let from = dec.clone();
         dec.apply(&frame(&mut enc, 8, 8.0)).unwrap();
         let t0 = Instant::now();
-        let mut between = Between::new(Some(from), &dec, t0).expect("eight steps apart");
+        let between = Between::new(Some(from), &dec, t0).expect("eight steps apart");
+        (dec, between, t0)
+    }
+
+    /// A body that moved from 0 to 8 over a stream frame of 8 steps is drawn at 1, 2, ...
+    /// at the steps in between, each step due `dt` after the one before.
+    #[test]
+    fn the_steps_between_two_frames_are_drawn_on_a_straight_line_as_they_come_due() {
+        let (dec, mut between, t0) = eight_steps();
         assert_eq!(between.due(t0, false), Some(1));
         let mut drawn = Vec::new();
         for k in 0..10u32 {
@@ -181,13 +188,7 @@ mod tests {
     /// after the last it drew; a recording's rest is every step it did not draw.
     #[test]
     fn a_late_look_skips_to_the_present_live_and_keeps_every_step_recorded() {
-        let mut enc = FrameEncoder::new(100);
-        let mut dec = FrameDecoder::new();
-        dec.apply(&frame(&mut enc, 0, 0.0)).unwrap();
-        let from = dec.clone();
-        dec.apply(&frame(&mut enc, 8, 8.0)).unwrap();
-        let t0 = Instant::now();
-        let mut between = Between::new(Some(from), &dec, t0).expect("eight steps apart");
+        let (_, mut between, t0) = eight_steps();
         let late = t0 + Duration::from_secs_f64(DT * 3.5);
         assert_eq!(between.due(late, false), Some(4));
         assert_eq!(between.due(late, true), Some(1));

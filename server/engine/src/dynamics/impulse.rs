@@ -360,10 +360,9 @@ pub fn solve_frame(
         blocks => crate::parallel::effective(params.threads).min(blocks),
     };
     let crew = buffers.crew.team(members);
-    let alone = team::Team::new(1);
     let split = |work: usize| {
         if work < crate::parallel::MIN_SPLIT {
-            &alone
+            team::Team::alone()
         } else {
             &*crew
         }

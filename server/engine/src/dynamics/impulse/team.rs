@@ -58,7 +58,14 @@ unsafe impl Sync for Team {}
 unsafe impl Send for Team {}
 
 impl Team {
-    pub(super) fn new(size: usize) -> Team {
+    /// The team of the caller alone (`run` calls the job and returns), shared by every
+    /// world: it has no helpers and no state a run changes.
+    pub(super) fn alone() -> &'static Team {
+        static ALONE: std::sync::OnceLock<Team> = std::sync::OnceLock::new();
+        ALONE.get_or_init(|| Team::new(1))
+    }
+
+    fn new(size: usize) -> Team {
         Team {
             size,
             epoch: AtomicU64::new(0),
