@@ -216,17 +216,16 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             if a.inv_mass + b.inv_mass == 0.0 {
                 continue;
             }
-            let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
             let rel = b.vel - a.vel;
-            let size = a
-                .shape
-                .half_extents()
-                .min_element()
-                .min(b.shape.half_extents().min_element())
-                * 2.0;
+            let (ha, hb) = (a.shape.half_extents(), b.shape.half_extents());
+            let size = ha.min_element().min(hb.min_element()) * 2.0;
             // Too far apart to meet within the frame: no contact. (Within a tenth of
-            // their size they may meet whatever their speed: the square root is spared.)
+            // their size they may meet whatever their speed.)
             let reach = 0.1 * size;
+            if too_far(b.pos - a.pos, ha + hb, rel, reach, frame_dt) {
+                continue;
+            }
+            let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
             if gap > reach && gap > rel.length() * frame_dt + reach {
                 continue;
             }
@@ -297,4 +296,21 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
         }
         found
     }
+}
+
+/// Whether two shapes whose centres are `d` apart and whose half extents add up to `half`
+/// are sure to be too far apart to meet within `dt` at the relative velocity `rel` (the
+/// test of [`Finder::contacts`], on the gap of their bounding boxes): without the exact
+/// separation, nor a square root. The boxes' gap is never more than the shapes', and the
+/// margins (a millionth of the reach and a few roundings of the distances, a millionth of
+/// the squared travel) cover the rounding by which the two may differ, so a pair it
+/// rejects the exact test rejects too:
+/// the contacts found are the same, bit for bit. Most candidate pairs of a moving crowd
+/// are rejected here (on the rain, the separation's square root and division were a third
+/// of the search).
+#[inline(always)]
+fn too_far(d: DVec2, half: DVec2, rel: DVec2, reach: f64, dt: f64) -> bool {
+    let room = (d.abs() - half).max_element() - reach;
+    let rounding = 8.0 * f64::EPSILON * (d.abs().max_element() + half.max_element());
+    room > 1e-6 * reach + rounding && room * room > rel.length_squared() * (dt * dt) * (1.0 + 1e-6)
 }
