@@ -56,8 +56,9 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
             first
         }
         None => {
-            if let Ok(command) = &parsed {
-                if let Err(over) = budgets.admit(&key, host.price(command), Instant::now()) {
+            let price = parsed.as_ref().ok().map(|command| host.price(command));
+            if let Some(price) = &price {
+                if let Err(over) = budgets.admit(&key, price.time(), Instant::now()) {
                     host.health.over_budget += 1;
                     tracing::debug!(frame, "command over budget: {over}");
                     if let Some(query) = query {
@@ -115,7 +116,11 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
                 error: reply.error.clone(),
             });
             let answer = Answer::new(&reply, due_at_step);
-            budgets.charge(&key, began.elapsed());
+            let took = began.elapsed();
+            budgets.charge(&key, took);
+            if let Some(price) = &price {
+                host.learn(price, took);
+            }
             // A command refused because the journal could not be written is tried afresh
             // when sent again: the disk may have room by then.
             if let (Some(id), false) = (id, journaled_as == Journaled::Failed) {

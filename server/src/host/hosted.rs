@@ -27,24 +27,7 @@ pub const MAX_PENDING_STEPS: u64 = 100_000;
 /// the statics as they are.
 pub const SNAPSHOT_EVERY: Duration = Duration::from_millis(250);
 
-/// Costs per item of the commands' work, from the times `handling_costs_per_item` below
-/// measured on the shipped pile on the reference machine (2 vCPU Xeon), two to three times
-/// over them: a reset of the 5050 boxes took 1.7 ms, a clear of them 0.3 ms, 10 000
-/// particles spawned 0.6 ms, a load by name 1.5 ms.
-pub mod price {
-    /// Any command: parse, journal, event, reply.
-    pub const BASE_NS: f64 = 20_000.0;
-    /// A pass over the bodies (select, agitate, clear, a setting).
-    pub const SCAN_NS_PER_BODY: f64 = 100.0;
-    /// A pass over the particles (a setting, a world dropped).
-    pub const SCAN_NS_PER_PARTICLE: f64 = 10.0;
-    /// A body built, or dropped (reset).
-    pub const BUILD_NS_PER_BODY: f64 = 1_000.0;
-    /// A byte of scene text parsed (reset, load).
-    pub const NS_PER_SCENE_BYTE: f64 = 50.0;
-    /// A particle spawned.
-    pub const NS_PER_PARTICLE: f64 = 100.0;
-}
+pub use super::price;
 
 /// The world, its scene and what the wire remembers of it.
 pub struct Hosted {
@@ -76,6 +59,9 @@ pub struct Hosted {
     limits: Limits,
     max_frame_bytes: u64,
     pub health: Health,
+    /// How much longer than their model commands took here (kept across worlds: it is
+    /// the machine's).
+    calibration: price::Calibration,
     /// The setting picked for the scene's accuracy target, and why.
     pub accuracy: Option<String>,
 }
@@ -127,6 +113,7 @@ impl Hosted {
             limits: opts.limits.clone(),
             max_frame_bytes: opts.max_frame_bytes,
             health: Health::default(),
+            calibration: price::Calibration::default(),
             accuracy: None,
         }
     }
@@ -193,55 +180,23 @@ impl Hosted {
 
     /// The stepping thread's time `command` is expected to take here, before it runs: the
     /// size of what it touches times the cost per item measured on the reference machine
-    /// (docs/security.md, "The cost of a command"). The budgets refuse by this price and
-    /// charge the time the command really took, so a price too low is paid in full all
-    /// the same.
-    pub fn price(&self, command: &Command) -> Duration {
-        let bodies = self.world.bodies().len() as f64;
-        let particles = self.world.particles().len() as f64;
-        let ns = match command {
-            Command::World(action) => match action {
-                // A pass over the bodies (and, for a selection, a pick among them).
-                Action::Select { .. } | Action::Agitate { .. } | Action::Clear { .. } => {
-                    price::BASE_NS + bodies * price::SCAN_NS_PER_BODY
-                }
-                // A spawn over the per-action limit is refused by the world at no cost.
-                Action::SpawnParticles { count, .. } => {
-                    let count = (*count).min(self.world.limits().particles_per_action);
-                    price::BASE_NS + f64::from(count) * price::NS_PER_PARTICLE
-                }
-                // A setting may rebuild what depends on it: the broad phase's cells, the
-                // particles' grid.
-                Action::Set(_) => {
-                    price::BASE_NS
-                        + bodies * price::SCAN_NS_PER_BODY
-                        + particles * price::SCAN_NS_PER_PARTICLE
-                }
-                _ => price::BASE_NS,
-            },
-            // The scene is parsed again and every body and particle of the old world
-            // dropped; the new one is built.
-            Command::Server(ServerCommand::Reset { .. }) => {
-                price::BASE_NS
-                    + self.scene_text.len() as f64 * price::NS_PER_SCENE_BYTE
-                    + bodies * price::BUILD_NS_PER_BODY
-                    + particles * price::SCAN_NS_PER_PARTICLE
-            }
-            // The new world's size is known once it is built: a load is priced by its
-            // text (a file by name as the largest text a command may carry) and the old
-            // world dropped, and charged what the build took.
-            Command::Server(ServerCommand::Load { text, .. }) => {
-                let bytes = text
-                    .as_ref()
-                    .map_or(self.limits.command_bytes as usize, String::len);
-                price::BASE_NS
-                    + bytes as f64 * price::NS_PER_SCENE_BYTE
-                    + bodies * price::SCAN_NS_PER_BODY
-                    + particles * price::SCAN_NS_PER_PARTICLE
-            }
-            Command::Server(_) => price::BASE_NS,
-        };
-        Duration::from_secs_f64(ns * 1e-9)
+    /// (docs/security.md, "The cost of a command"), scaled by what the last command of its
+    /// kind took here ([`price`]). The budgets refuse by this price and charge the time
+    /// the command really took, so a price too low is paid in full all the same.
+    pub fn price(&self, command: &Command) -> price::Price {
+        self.calibration.price(price::model(
+            command,
+            self.world.bodies().len() as f64,
+            self.world.particles().len() as f64,
+            self.scene_text.len(),
+            self.world.limits().particles_per_action,
+            u64::from(self.limits.command_bytes),
+        ))
+    }
+
+    /// Learns what a command priced `price` took here (see [`price::Calibration`]).
+    pub fn learn(&mut self, price: &price::Price, took: Duration) {
+        self.calibration.learn(price, took);
     }
 
     /// Applies one command at the frame boundary; the reply says what it did. A `step`
@@ -584,7 +539,7 @@ mass = 1
             eprintln!(
                 "{:>10.3} ms took, {:>10.3} ms priced: {json}",
                 best.as_secs_f64() * 1e3,
-                price.as_secs_f64() * 1e3
+                price.time().as_secs_f64() * 1e3
             );
         }
         host.handle(&Command::parse(br#"{"do":"reset"}"#).unwrap());

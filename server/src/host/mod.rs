@@ -24,6 +24,7 @@ pub mod inbox;
 pub mod journal;
 pub mod outbox;
 pub mod peers;
+pub mod price;
 pub mod streams;
 
 use std::io::Write;

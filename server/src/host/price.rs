@@ -1,0 +1,201 @@
+//! What a command is expected to cost the stepping thread before it runs: a model (the
+//! size of what it touches times the cost per item measured on the reference machine,
+//! docs/security.md, "The cost of a command"), scaled by how much longer the last command
+//! of its kind really took on this machine.
+//!
+//! The budgets ([`super::budget`]) refuse by the price and charge the measured time. The
+//! model alone can be low on a slower machine: a `reset` of 90 000 static boxes, priced
+//! 90 ms, took 130 ms on one, so it passed the 100 ms any command may take at once and
+//! held the world's clock up past what it catches up. Scaled by what the last one took,
+//! the next is priced at what it will take here and refused before it runs.
+
+use std::time::Duration;
+
+use ricochet_protocol::command::{Action, Command, ServerCommand};
+
+// Costs per item of the commands' work, from the times `handling_costs_per_item`
+// (host/hosted.rs) measured on the shipped pile on the reference machine (2 vCPU Xeon),
+// two to three times over them: a reset of the 5050 boxes took 1.7 ms, a clear of them
+// 0.3 ms, 10 000 particles spawned 0.6 ms, a load by name 1.5 ms.
+
+/// Any command: parse, journal, event, reply.
+pub const BASE_NS: f64 = 20_000.0;
+/// A pass over the bodies (select, agitate, clear, a setting).
+pub const SCAN_NS_PER_BODY: f64 = 100.0;
+/// A pass over the particles (a setting, a world dropped).
+pub const SCAN_NS_PER_PARTICLE: f64 = 10.0;
+/// A body built, or dropped (reset).
+pub const BUILD_NS_PER_BODY: f64 = 1_000.0;
+/// A byte of scene text parsed (reset, load).
+pub const NS_PER_SCENE_BYTE: f64 = 50.0;
+/// A particle spawned.
+pub const NS_PER_PARTICLE: f64 = 100.0;
+
+/// The kinds of command whose cost grows with the world or with what they carry: each
+/// is scaled by its own last run. Other commands cost their base, whatever the world.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// A pass over the bodies: select, agitate, clear.
+    Scan,
+    Spawn,
+    Set,
+    Reset,
+    Load,
+    /// Everything else: priced at its base, never scaled (a journal write can take a
+    /// millisecond beside a 20 µs command; scaling every small command by it would price
+    /// them all as the slowest).
+    Base,
+}
+
+const SCALED: usize = 5;
+
+impl Kind {
+    fn index(self) -> Option<usize> {
+        match self {
+            Kind::Scan => Some(0),
+            Kind::Spawn => Some(1),
+            Kind::Set => Some(2),
+            Kind::Reset => Some(3),
+            Kind::Load => Some(4),
+            Kind::Base => None,
+        }
+    }
+}
+
+/// What a world of `bodies` bodies and `particles` particles, made from a scene text of
+/// `scene_bytes` bytes, expects `command` to cost by the model: its kind and nanoseconds.
+/// `particles_per_action` caps a spawn (the world refuses more at no cost); `command_bytes`
+/// is the largest text a `load` may carry (a file by name is priced as that).
+pub fn model(
+    command: &Command,
+    bodies: f64,
+    particles: f64,
+    scene_bytes: usize,
+    particles_per_action: u32,
+    command_bytes: u64,
+) -> (Kind, f64) {
+    match command {
+        Command::World(action) => match action {
+            // A pass over the bodies (and, for a selection, a pick among them).
+            Action::Select { .. } | Action::Agitate { .. } | Action::Clear { .. } => {
+                (Kind::Scan, BASE_NS + bodies * SCAN_NS_PER_BODY)
+            }
+            // A spawn over the per-action limit is refused by the world at no cost.
+            Action::SpawnParticles { count, .. } => {
+                let count = (*count).min(particles_per_action);
+                (Kind::Spawn, BASE_NS + f64::from(count) * NS_PER_PARTICLE)
+            }
+            // A setting may rebuild what depends on it: the broad phase's cells, the
+            // particles' grid.
+            Action::Set(_) => (
+                Kind::Set,
+                BASE_NS + bodies * SCAN_NS_PER_BODY + particles * SCAN_NS_PER_PARTICLE,
+            ),
+            _ => (Kind::Base, BASE_NS),
+        },
+        // The scene is parsed again and every body and particle of the old world
+        // dropped; the new one is built.
+        Command::Server(ServerCommand::Reset { .. }) => (
+            Kind::Reset,
+            BASE_NS
+                + scene_bytes as f64 * NS_PER_SCENE_BYTE
+                + bodies * BUILD_NS_PER_BODY
+                + particles * SCAN_NS_PER_PARTICLE,
+        ),
+        // The new world's size is known once it is built: a load is priced by its text
+        // (a file by name as the largest text a command may carry) and the old world
+        // dropped, and charged what the build took.
+        Command::Server(ServerCommand::Load { text, .. }) => {
+            let bytes = text.as_ref().map_or(command_bytes as usize, String::len);
+            (
+                Kind::Load,
+                BASE_NS
+                    + bytes as f64 * NS_PER_SCENE_BYTE
+                    + bodies * SCAN_NS_PER_BODY
+                    + particles * SCAN_NS_PER_PARTICLE,
+            )
+        }
+        Command::Server(_) => (Kind::Base, BASE_NS),
+    }
+}
+
+/// A command's price: the model's figure and the scale of its kind when it was priced.
+#[derive(Clone, Copy, Debug)]
+pub struct Price {
+    kind: Kind,
+    model_ns: f64,
+    scale: f64,
+}
+
+impl Price {
+    /// The time the command is expected to take here.
+    pub fn time(&self) -> Duration {
+        Duration::try_from_secs_f64(self.model_ns * self.scale * 1e-9).unwrap_or(Duration::MAX)
+    }
+}
+
+/// How much longer than the model the last command of each scaled kind took here (at
+/// least 1: the model is never priced down, so a fast machine keeps the reference's
+/// prices).
+#[derive(Clone, Debug)]
+pub struct Calibration([f64; SCALED]);
+
+impl Default for Calibration {
+    fn default() -> Self {
+        Calibration([1.0; SCALED])
+    }
+}
+
+/// The largest scale a kind may get: a command that took a thousand times its model
+/// (a machine stalled under it) still gets a finite price.
+const MAX_SCALE: f64 = 1_000.0;
+
+impl Calibration {
+    /// The price of a command the model puts at `model_ns` of kind `kind`.
+    pub fn price(&self, (kind, model_ns): (Kind, f64)) -> Price {
+        let scale = kind.index().map_or(1.0, |k| self.0[k]);
+        Price {
+            kind,
+            model_ns,
+            scale,
+        }
+    }
+
+    /// Learns from a command priced `price` that took `took`: its kind is scaled by
+    /// `took` over the model from now on.
+    pub fn learn(&mut self, price: &Price, took: Duration) {
+        if let Some(k) = price.kind.index() {
+            if price.model_ns > 0.0 {
+                let ratio = took.as_secs_f64() * 1e9 / price.model_ns;
+                self.0[k] = ratio.clamp(1.0, MAX_SCALE);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_kind_is_priced_at_what_its_last_run_took_never_below_the_model() {
+        let mut c = Calibration::default();
+        let reset = (Kind::Reset, 90e6);
+        let ms = |p: Price| p.time().as_secs_f64() * 1e3;
+        assert!((ms(c.price(reset)) - 90.0).abs() < 1e-9);
+        // It took 130 ms: the next is priced 130 ms.
+        c.learn(&c.price(reset), Duration::from_millis(130));
+        assert!((ms(c.price(reset)) - 130.0).abs() < 1e-6);
+        // Another kind is not touched.
+        assert!((ms(c.price((Kind::Scan, 1e6))) - 1.0).abs() < 1e-9);
+        // Faster than the model: back to the model, not below it.
+        c.learn(&c.price(reset), Duration::from_millis(10));
+        assert!((ms(c.price(reset)) - 90.0).abs() < 1e-9);
+        // A small command that waited on the disk scales nothing.
+        c.learn(&c.price((Kind::Base, BASE_NS)), Duration::from_millis(5));
+        assert!((ms(c.price((Kind::Base, BASE_NS))) - 0.02).abs() < 1e-9);
+        // A stalled run gives a large but finite price.
+        c.learn(&c.price(reset), Duration::from_secs(1_000_000));
+        assert!(c.price(reset).time() < Duration::from_secs(100));
+    }
+}
