@@ -97,18 +97,28 @@ fn fine(v: [f64; 2]) -> [i64; 2] {
     v.map(|c| quantize(c, FINE))
 }
 
-/// A body as a key frame or a snapshot states it: its position, displacement and
-/// acceleration rounded to their quanta.
+/// A body's position, displacement and acceleration as a key frame or a snapshot states
+/// them: rounded to their quanta.
+fn rounded(b: &BodyIn, disp: [i64; 2], accel: [i64; 2]) -> [[i64; 2]; 3] {
+    [
+        fine(b.pos).map(|v| round_to(v, POS_STEP)),
+        disp.map(|v| round_to(v, DISP_STEP)),
+        accel.map(|v| round_to(v, ACC_STEP)),
+    ]
+}
+
+/// A body as a key frame or a snapshot states it (see [`rounded`]).
 fn body_of(b: &BodyIn, disp: [i64; 2], accel: [i64; 2], dt: f64) -> Body {
+    let [p, d, a] = rounded(b, disp, accel);
     Body {
         key: b.key,
         id: b.id.to_string(),
         group: b.group.to_string(),
         circle: b.circle,
         size: [b.size[0] as f32, b.size[1] as f32],
-        p: fine(b.pos).map(|v| round_to(v, POS_STEP)),
-        d: disp.map(|v| round_to(v, DISP_STEP)),
-        a: accel.map(|v| round_to(v, ACC_STEP)),
+        p,
+        d,
+        a,
         dt,
         collided: b.collided,
     }
@@ -500,8 +510,9 @@ impl FrameEncoder {
                 let b = &mut old.body;
                 b.dt = dt;
                 if key {
-                    let fresh = body_of(now, disp, accel, dt);
-                    (b.p, b.d, b.a, b.collided) = (fresh.p, fresh.d, fresh.a, fresh.collided);
+                    // The body it already is, restated: no new id or group strings.
+                    [b.p, b.d, b.a] = rounded(now, disp, accel);
+                    b.collided = now.collided;
                     put_new_body(records.start(now.key), &mut prev, b, COARSE);
                     return old;
                 }
