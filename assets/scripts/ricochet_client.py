@@ -21,7 +21,7 @@ import threading
 import time
 import uuid
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 MAX_STEPS_A_FRAME = 64
 MAX_TOKENS = 4096  # liveliness tokens one query keeps, as the Rust client
 FINE = 2.0 ** -24
@@ -33,6 +33,7 @@ COLOR_SCALE = 31.875
 KIND_DELTA, KIND_KEY, KIND_STATICS, KIND_RESYNC = 0, 1, 2, 3
 NEW, POS, VEL, COLLIDED, REMOVED, ACC, SAME_SHAPE, SAME_GROUP = 0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80
 HALT = 0x40  # in a body record that is not NEW
+Y_ONLY = 0x80  # in a body record that is not NEW: each correction is its y alone
 FROZEN, SAME_MOTION, SAME_LOOK = 0x20, 0x40, 0x80  # in a NEW particle record
 FREEZE_X, FREEZE_Y = 0x20, 0x40  # in a particle record that is not NEW
 I64 = 1 << 64
@@ -226,12 +227,11 @@ class FrameDecoder:
                 if b is None:
                     raise DecodeError(f"update of unknown body {key}")
                 b = bodies[key] = dict(b)
-                if flags & POS:
-                    b["p"] = [wrap(b["p"][0] + r.svarint() * POS_STEP), wrap(b["p"][1] + r.svarint() * POS_STEP)]
-                if flags & VEL:
-                    b["d"] = [wrap(b["d"][0] + r.svarint() * DISP_STEP), wrap(b["d"][1] + r.svarint() * DISP_STEP)]
-                if flags & ACC:
-                    b["a"] = [wrap(b["a"][0] + r.svarint() * ACC_STEP), wrap(b["a"][1] + r.svarint() * ACC_STEP)]
+                for flag, field, unit in ((POS, "p", POS_STEP), (VEL, "d", DISP_STEP), (ACC, "a", ACC_STEP)):
+                    if flags & flag:
+                        x = 0 if flags & Y_ONLY else r.svarint() * unit
+                        y = r.svarint() * unit
+                        b[field] = [wrap(b[field][0] + x), wrap(b[field][1] + y)]
                 if flags & HALT:
                     b["d"], b["a"] = [0, 0], [0, 0]
             bodies[key]["collided"] = bool(flags & COLLIDED)

@@ -9,7 +9,7 @@ use super::{
     Body, DecodeError, EmitterIn, FrameStats, Particle, ACC, ACC_STEP, COLLIDED, DISP_STEP,
     FREEZE_X, FREEZE_Y, FROZEN, HALT, KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW,
     PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS, POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK,
-    SAME_MOTION, SAME_SHAPE, VEL,
+    SAME_MOTION, SAME_SHAPE, VEL, Y_ONLY,
 };
 
 /// What a receiver knows of a world, kept up to date frame by frame.
@@ -408,7 +408,11 @@ fn read_bodies(
             (ACC, ACC_STEP, &mut a),
         ] {
             if flags & flag != 0 {
-                let r = pair(r, unit)?;
+                let r = if flags & Y_ONLY != 0 {
+                    [0, r.svarint()?.wrapping_mul(unit)]
+                } else {
+                    pair(r, unit)?
+                };
                 *v = [v[0].wrapping_add(r[0]), v[1].wrapping_add(r[1])];
             }
         }

@@ -9,7 +9,7 @@ use super::{
     COLOR_SCALE, DISP_STEP, DISP_TOLERANCE, FINE, FREEZE_X, FREEZE_Y, FROZEN, HALT, HEADER_BYTES,
     KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM,
     PARTICLE_VEL_QUANTUM, POS, POS_STEP, POS_TOLERANCE, SAME_GROUP, SAME_LOOK, SAME_MOTION,
-    SAME_SHAPE, VEL,
+    SAME_SHAPE, VEL, Y_ONLY,
 };
 
 fn quantize(v: f64, quantum: f64) -> i64 {
@@ -540,19 +540,22 @@ impl FrameEncoder {
                 };
                 let (sped, accelerated) = (rd != [0, 0], ra != [0, 0]);
                 if record {
+                    let corrections = [(moved, rp), (sped, rd), (accelerated, ra)];
+                    let y_only = corrections.iter().all(|&(on, r)| !on || r[0] == 0);
                     let out = records.start(now.key);
                     out.push(
                         (moved as u8 * POS)
                             | (sped as u8 * VEL)
                             | (accelerated as u8 * ACC)
                             | (halt as u8 * HALT)
+                            | (y_only as u8 * Y_ONLY)
                             | (now.collided as u8 * COLLIDED),
                     );
-                    for (on, r) in [(moved, rp), (sped, rd), (accelerated, ra)] {
-                        if on {
+                    for (_, r) in corrections.iter().filter(|(on, _)| *on) {
+                        if !y_only {
                             put_svarint(out, r[0]);
-                            put_svarint(out, r[1]);
                         }
+                        put_svarint(out, r[1]);
                     }
                 }
                 b.p = [0, 1].map(|i| p[i].wrapping_add(rp[i].wrapping_mul(POS_STEP)));

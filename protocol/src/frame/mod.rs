@@ -11,11 +11,11 @@
 //! frames: they are in the snapshot, fetched with a query and re-published when they
 //! change.
 //!
-//! # Layout, version 3 (all numbers little-endian)
+//! # Layout, version 4 (all numbers little-endian)
 //!
 //! ```text
 //! magic      3 bytes  "RCF"
-//! version    u8       3
+//! version    u8       4
 //! kind       u8       0 delta, 1 key frame, 2 statics snapshot, 3 resync key frame
 //! frame      u64      steps taken
 //! prev       u64      the frame this one follows in its stream (a delta applies only
@@ -70,6 +70,9 @@
 //! - `VEL` (0x04): a correction of `d`, two signed varints of [`DISP_QUANTUM`];
 //! - `ACC` (0x20): a correction of `a`, two signed varints of [`ACC_QUANTUM`];
 //! - `HALT` (0x40, in a record that is not NEW): the body holds still, `d` and `a` become 0;
+//! - `Y_ONLY` (0x80, in a record that is not NEW): every correction of the record (`POS`,
+//!   `VEL`, `ACC`) is one signed varint, its y; its x is 0 (a body moving along y alone,
+//!   as anything falling or resting under gravity, costs half). New in version 4;
 //!
 //! Corrections apply to the predicted state. A record the position or the displacement
 //! needs also corrects `d` and `a` towards the body's last displacement and its last
@@ -178,6 +181,9 @@ const SAME_SHAPE: u8 = 0x40;
 const SAME_GROUP: u8 = 0x80;
 /// In a record that is not NEW: the body holds still (`d` and `a` become 0).
 const HALT: u8 = 0x40;
+/// In a body record that is not NEW: every correction it carries is along y alone (its
+/// x is 0 and not written).
+const Y_ONLY: u8 = 0x80;
 /// A NEW particle record carries the axes it is frozen on.
 const FROZEN: u8 = 0x20;
 /// In a particle record that is not NEW: frozen on x, on y.

@@ -496,3 +496,53 @@ fn a_key_frame_the_stream_does_not_follow_is_dropped_at_the_next_delta() {
     // The stream's own key frames (every fifth) were all kept.
     assert_eq!(clean.dropped_key_frames, 0);
 }
+
+/// A body whose corrections are along y alone (anything falling or resting under
+/// gravity) writes only their y (`Y_ONLY`): the same motion along x costs a byte more a
+/// correction, and both stay within the stated bound.
+#[test]
+fn corrections_along_y_alone_write_only_their_y() {
+    // A ball dropped from 10 bouncing on the floor, and the same motion along x.
+    let heights: Vec<f64> = thrown_ball(300).iter().map(|p| p[1]).collect();
+    let run = |along_y: bool| {
+        let mut enc = FrameEncoder::new(10_000);
+        let mut dec = FrameDecoder::new();
+        let cloud = Cloud::default();
+        let (mut bytes, mut records) = (0, 0);
+        for (k, &h) in heights.iter().enumerate() {
+            let p = if along_y { [5.0, h] } else { [h, 5.0] };
+            let f = enc.encode(
+                k as u64,
+                k as f64 * DT,
+                DT,
+                &FrameStats::default(),
+                &[],
+                &[body(0, "ball", p)],
+                &cloud.view(),
+            );
+            dec.apply(&f).unwrap();
+            if k > 0 {
+                bytes += f.len();
+                records += usize::from(f.len() > HEADER_BYTES + 3);
+            }
+            let got = dec.body("ball").unwrap().pos();
+            for i in 0..2 {
+                let off = (got[i] - p[i]).abs();
+                assert!(off <= POS_BOUND + FINE, "frame {k}: position off by {off}");
+            }
+        }
+        (bytes, records)
+    };
+    let (y_bytes, y_records) = run(true);
+    let (x_bytes, x_records) = run(false);
+    assert_eq!(
+        y_records, x_records,
+        "the prediction is the same on either axis"
+    );
+    assert!(y_records > 5, "the bounces need records: {y_records}");
+    // Every record carries at least one correction, whose x (a zero) is one byte.
+    assert!(
+        x_bytes >= y_bytes + y_records,
+        "along x {x_bytes} bytes, along y {y_bytes}, {y_records} records"
+    );
+}
