@@ -184,19 +184,22 @@ impl Hosted {
     /// kind took here ([`price`]). The budgets refuse by this price and charge the time
     /// the command really took, so a price too low is paid in full all the same.
     pub fn price(&self, command: &Command) -> price::Price {
-        self.calibration.price(price::model(
-            command,
-            self.world.bodies().len() as f64,
-            self.world.particles().len() as f64,
-            self.scene_text.len(),
-            self.world.limits().particles_per_action,
-            u64::from(self.limits.command_bytes),
-        ))
+        self.calibration.price(
+            price::model(
+                command,
+                self.world.bodies().len() as f64,
+                self.world.particles().len() as f64,
+                self.scene_text.len(),
+                self.world.limits().particles_per_action,
+                u64::from(self.limits.command_bytes),
+            ),
+            Instant::now(),
+        )
     }
 
     /// Learns what a command priced `price` took here (see [`price::Calibration`]).
     pub fn learn(&mut self, price: &price::Price, took: Duration) {
-        self.calibration.learn(price, took);
+        self.calibration.learn(price, took, Instant::now());
     }
 
     /// Applies one command at the frame boundary; the reply says what it did. A `step`

@@ -8,8 +8,14 @@
 //! 90 ms, took 130 ms on one, so it passed the 100 ms any command may take at once and
 //! held the world's clock up past what it catches up. Scaled by what the last one took,
 //! the next is priced at what it will take here and refused before it runs.
+//!
+//! The scale decays back towards the model (half of what it adds every
+//! [`Calibration::HALF_LIFE`]): a command refused by its scale is tried again once the
+//! decay brings its price under the burst, and relearned from what it then takes. One
+//! slow run (a machine stalled under it) does not lock its kind out for good, and a
+//! really slow kind runs at most once a half-life or so over the burst.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use ricochet_protocol::command::{Action, Command, ServerCommand};
 
@@ -31,8 +37,10 @@ pub const NS_PER_SCENE_BYTE: f64 = 50.0;
 /// A particle spawned.
 pub const NS_PER_PARTICLE: f64 = 100.0;
 
-/// The kinds of command whose cost grows with the world or with what they carry: each
-/// is scaled by its own last run. Other commands cost their base, whatever the world.
+/// The kinds of command whose cost grows with the world they run on: each is scaled by
+/// its own last run. Others are not scaled: a load builds a world the model knows only
+/// by its text (its time is the new scene's, not the machine's), and the rest cost their
+/// base whatever the world.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
     /// A pass over the bodies: select, agitate, clear.
@@ -47,7 +55,7 @@ pub enum Kind {
     Base,
 }
 
-const SCALED: usize = 5;
+const SCALED: usize = 4;
 
 impl Kind {
     fn index(self) -> Option<usize> {
@@ -56,8 +64,7 @@ impl Kind {
             Kind::Spawn => Some(1),
             Kind::Set => Some(2),
             Kind::Reset => Some(3),
-            Kind::Load => Some(4),
-            Kind::Base => None,
+            Kind::Load | Kind::Base => None,
         }
     }
 }
@@ -134,26 +141,30 @@ impl Price {
     }
 }
 
-/// How much longer than the model the last command of each scaled kind took here (at
-/// least 1: the model is never priced down, so a fast machine keeps the reference's
-/// prices).
-#[derive(Clone, Debug)]
-pub struct Calibration([f64; SCALED]);
-
-impl Default for Calibration {
-    fn default() -> Self {
-        Calibration([1.0; SCALED])
-    }
-}
+/// How much longer than the model the last command of each scaled kind took here, and
+/// when (at least 1: the model is never priced down, so a fast machine keeps the
+/// reference's prices).
+#[derive(Clone, Debug, Default)]
+pub struct Calibration([Option<(f64, Instant)>; SCALED]);
 
 /// The largest scale a kind may get: a command that took a thousand times its model
 /// (a machine stalled under it) still gets a finite price.
 const MAX_SCALE: f64 = 1_000.0;
 
 impl Calibration {
-    /// The price of a command the model puts at `model_ns` of kind `kind`.
-    pub fn price(&self, (kind, model_ns): (Kind, f64)) -> Price {
-        let scale = kind.index().map_or(1.0, |k| self.0[k]);
+    /// The time in which a scale loses half of what it adds to the model.
+    pub const HALF_LIFE: Duration = Duration::from_secs(30);
+
+    /// The price at `now` of a command the model puts at `model_ns` of kind `kind`.
+    pub fn price(&self, (kind, model_ns): (Kind, f64), now: Instant) -> Price {
+        let scale = kind
+            .index()
+            .and_then(|k| self.0[k])
+            .map_or(1.0, |(scale, at)| {
+                let halves =
+                    now.saturating_duration_since(at).as_secs_f64() / Self::HALF_LIFE.as_secs_f64();
+                1.0 + (scale - 1.0) * 0.5f64.powf(halves)
+            });
         Price {
             kind,
             model_ns,
@@ -161,13 +172,13 @@ impl Calibration {
         }
     }
 
-    /// Learns from a command priced `price` that took `took`: its kind is scaled by
-    /// `took` over the model from now on.
-    pub fn learn(&mut self, price: &Price, took: Duration) {
+    /// Learns from a command priced `price` that took `took`, done at `now`: its kind is
+    /// scaled by `took` over the model from then on.
+    pub fn learn(&mut self, price: &Price, took: Duration, now: Instant) {
         if let Some(k) = price.kind.index() {
             if price.model_ns > 0.0 {
                 let ratio = took.as_secs_f64() * 1e9 / price.model_ns;
-                self.0[k] = ratio.clamp(1.0, MAX_SCALE);
+                self.0[k] = Some((ratio.clamp(1.0, MAX_SCALE), now));
             }
         }
     }
@@ -179,23 +190,50 @@ mod tests {
 
     #[test]
     fn a_kind_is_priced_at_what_its_last_run_took_never_below_the_model() {
+        let t0 = Instant::now();
         let mut c = Calibration::default();
         let reset = (Kind::Reset, 90e6);
         let ms = |p: Price| p.time().as_secs_f64() * 1e3;
-        assert!((ms(c.price(reset)) - 90.0).abs() < 1e-9);
+        assert!((ms(c.price(reset, t0)) - 90.0).abs() < 1e-9);
         // It took 130 ms: the next is priced 130 ms.
-        c.learn(&c.price(reset), Duration::from_millis(130));
-        assert!((ms(c.price(reset)) - 130.0).abs() < 1e-6);
+        c.learn(&c.price(reset, t0), Duration::from_millis(130), t0);
+        assert!((ms(c.price(reset, t0)) - 130.0).abs() < 1e-6);
         // Another kind is not touched.
-        assert!((ms(c.price((Kind::Scan, 1e6))) - 1.0).abs() < 1e-9);
+        assert!((ms(c.price((Kind::Scan, 1e6), t0)) - 1.0).abs() < 1e-9);
         // Faster than the model: back to the model, not below it.
-        c.learn(&c.price(reset), Duration::from_millis(10));
-        assert!((ms(c.price(reset)) - 90.0).abs() < 1e-9);
-        // A small command that waited on the disk scales nothing.
-        c.learn(&c.price((Kind::Base, BASE_NS)), Duration::from_millis(5));
-        assert!((ms(c.price((Kind::Base, BASE_NS))) - 0.02).abs() < 1e-9);
+        c.learn(&c.price(reset, t0), Duration::from_millis(10), t0);
+        assert!((ms(c.price(reset, t0)) - 90.0).abs() < 1e-9);
+        // A small command that waited on the disk scales nothing, nor does a load.
+        c.learn(
+            &c.price((Kind::Base, BASE_NS), t0),
+            Duration::from_millis(5),
+            t0,
+        );
+        assert!((ms(c.price((Kind::Base, BASE_NS), t0)) - 0.02).abs() < 1e-9);
+        c.learn(
+            &c.price((Kind::Load, 1e6), t0),
+            Duration::from_millis(50),
+            t0,
+        );
+        assert!((ms(c.price((Kind::Load, 1e6), t0)) - 1.0).abs() < 1e-9);
         // A stalled run gives a large but finite price.
-        c.learn(&c.price(reset), Duration::from_secs(1_000_000));
-        assert!(c.price(reset).time() < Duration::from_secs(100));
+        c.learn(&c.price(reset, t0), Duration::from_secs(1_000_000), t0);
+        assert!(c.price(reset, t0).time() < Duration::from_secs(100));
+    }
+
+    #[test]
+    fn a_scale_decays_back_to_the_model_so_no_kind_is_locked_out() {
+        let t0 = Instant::now();
+        let mut c = Calibration::default();
+        let reset = (Kind::Reset, 90e6);
+        let ms = |p: Price| p.time().as_secs_f64() * 1e3;
+        // One stalled run at three times the model: priced 270 ms, over any burst.
+        c.learn(&c.price(reset, t0), Duration::from_millis(270), t0);
+        assert!((ms(c.price(reset, t0)) - 270.0).abs() < 1e-6);
+        // A half-life on, half of what it added is gone; ten on, next to all of it.
+        let later = t0 + Calibration::HALF_LIFE;
+        assert!((ms(c.price(reset, later)) - 180.0).abs() < 1e-6);
+        let much_later = t0 + Calibration::HALF_LIFE * 10;
+        assert!(ms(c.price(reset, much_later)) < 90.2);
     }
 }
