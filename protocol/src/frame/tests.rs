@@ -386,25 +386,30 @@ fn thrown_ball(frames: u64) -> Vec<[f64; 2]> {
     out
 }
 
+/// Frame `k` of a world of the one body `b` and no particles.
+fn body_frame(enc: &mut FrameEncoder, k: usize, b: BodyIn) -> Vec<u8> {
+    let cloud = Cloud::default();
+    enc.encode(
+        k as u64,
+        k as f64 * DT,
+        DT,
+        &FrameStats::default(),
+        &[],
+        &[b],
+        &cloud.view(),
+    )
+}
+
 #[test]
 fn a_receiver_stays_within_the_stated_bound_and_free_flight_costs_next_to_nothing() {
     let truth = thrown_ball(600);
     let mut enc = FrameEncoder::new(10_000);
     let mut dec = FrameDecoder::new();
-    let cloud = Cloud::default();
     let mut with_record = Vec::new();
     for (k, p) in truth.iter().enumerate() {
         let mut b = body(0, "ball", *p);
         b.vel = [3.0, 4.0];
-        let f = enc.encode(
-            k as u64,
-            k as f64 * DT,
-            DT,
-            &FrameStats::default(),
-            &[],
-            &[b],
-            &cloud.view(),
-        );
+        let f = body_frame(&mut enc, k, b);
         dec.apply(&f).unwrap();
         // Header, the emitters' count, the bodies' count, the particles' count.
         if f.len() > HEADER_BYTES + 3 {
@@ -507,19 +512,10 @@ fn corrections_along_y_alone_write_only_their_y() {
     let run = |along_y: bool| {
         let mut enc = FrameEncoder::new(10_000);
         let mut dec = FrameDecoder::new();
-        let cloud = Cloud::default();
         let (mut bytes, mut records) = (0, 0);
         for (k, &h) in heights.iter().enumerate() {
             let p = if along_y { [5.0, h] } else { [h, 5.0] };
-            let f = enc.encode(
-                k as u64,
-                k as f64 * DT,
-                DT,
-                &FrameStats::default(),
-                &[],
-                &[body(0, "ball", p)],
-                &cloud.view(),
-            );
+            let f = body_frame(&mut enc, k, body(0, "ball", p));
             dec.apply(&f).unwrap();
             if k > 0 {
                 bytes += f.len();

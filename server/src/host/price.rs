@@ -188,12 +188,18 @@ impl Calibration {
 mod tests {
     use super::*;
 
+    /// A reset the model puts at 90 ms.
+    const RESET: (Kind, f64) = (Kind::Reset, 90e6);
+
+    fn ms(p: Price) -> f64 {
+        p.time().as_secs_f64() * 1e3
+    }
+
     #[test]
     fn a_kind_is_priced_at_what_its_last_run_took_never_below_the_model() {
         let t0 = Instant::now();
         let mut c = Calibration::default();
-        let reset = (Kind::Reset, 90e6);
-        let ms = |p: Price| p.time().as_secs_f64() * 1e3;
+        let reset = RESET;
         assert!((ms(c.price(reset, t0)) - 90.0).abs() < 1e-9);
         // It took 130 ms: the next is priced 130 ms.
         c.learn(&c.price(reset, t0), Duration::from_millis(130), t0);
@@ -225,8 +231,7 @@ mod tests {
     fn a_scale_decays_back_to_the_model_so_no_kind_is_locked_out() {
         let t0 = Instant::now();
         let mut c = Calibration::default();
-        let reset = (Kind::Reset, 90e6);
-        let ms = |p: Price| p.time().as_secs_f64() * 1e3;
+        let reset = RESET;
         // One stalled run at three times the model: priced 270 ms, over any burst.
         c.learn(&c.price(reset, t0), Duration::from_millis(270), t0);
         assert!((ms(c.price(reset, t0)) - 270.0).abs() < 1e-6);
