@@ -42,7 +42,7 @@ fn replayed_frames(server: &Server, client: &Client, log: &Path, until: u64) -> 
                 let bodies: Vec<_> = decoder
                     .bodies
                     .iter()
-                    .map(|b| (b.id.clone(), b.p, b.d, b.a, b.collided))
+                    .map(|b| (b.id.clone(), b.p, b.d, b.collided))
                     .collect();
                 let particles: Vec<_> = decoder.particles.iter().map(|p| (p.id, p.pos)).collect();
                 frames.push(format!("{} {:?} {:?}", decoder.frame, bodies, particles));

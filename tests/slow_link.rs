@@ -1,7 +1,9 @@
 //! A viewer on a slow link: a network namespace made by the test, joined to this one by a
 //! veth pair whose both ends a token bucket holds to `LINK` bits a second (`tc qdisc ...
-//! tbf`; this kernel has no netem, so the link is slow but does not add delay or drop).
-//! The server runs here; `ricochet watch` runs in the namespace, with real processes.
+//! tbf`), dropping what would wait in its queue more than 400 ms. This kernel has no
+//! netem, so the delay is added by a relay in the test (`Delay`): the watchers reach the
+//! server through it, and every byte waits `DELAY` in each direction on its way. The
+//! server runs here; `ricochet watch` runs in the namespace, with real processes.
 //!
 //! The world is kept busy with fire, well over the link's rate in frames at every step. A
 //! watcher that states its link's budget (`--max-bandwidth`) gets a reduced-rate stream
@@ -14,11 +16,12 @@
 mod common;
 
 use std::collections::HashMap;
-use std::net::TcpListener;
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
 use std::process::{Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::sync::{mpsc, Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use common::*;
 use ricochet_protocol::client::Client;
@@ -34,6 +37,8 @@ const BUDGET: &str = "600k";
 /// The careful watcher's frames arrive at most this late.
 const MAX_LAG: Duration = Duration::from_millis(500);
 const WATCH_SECONDS: f64 = 10.0;
+/// What the relay adds to the link's own delay, each way.
+const DELAY: Duration = Duration::from_millis(40);
 
 /// A namespace joined to this one by a rate-limited veth pair; removed when dropped.
 struct SlowLink {
@@ -102,6 +107,74 @@ impl Drop for SlowLink {
     }
 }
 
+/// A TCP relay that holds every byte `DELAY` before passing it on, each way, with a
+/// bounded queue (a slow reader holds up its writer, as a link does). It stops taking
+/// connections when dropped; a connection's threads end when either side closes.
+struct Delay {
+    stop: Arc<AtomicBool>,
+}
+
+impl Delay {
+    /// Listens on `at` (an `ip:port`) and relays each connection to `to`.
+    fn start(at: &str, to: String) -> Delay {
+        let listener = TcpListener::bind(at).unwrap();
+        listener.set_nonblocking(true).unwrap();
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopped = stop.clone();
+        std::thread::spawn(move || {
+            while !stopped.load(Ordering::Relaxed) {
+                match listener.accept() {
+                    Ok((inbound, _)) => {
+                        inbound.set_nonblocking(false).unwrap();
+                        let Ok(outbound) = TcpStream::connect(&to) else {
+                            continue;
+                        };
+                        for (from, into) in [
+                            (inbound.try_clone().unwrap(), outbound.try_clone().unwrap()),
+                            (outbound, inbound),
+                        ] {
+                            Delay::pump(from, into);
+                        }
+                    }
+                    Err(_) => std::thread::sleep(Duration::from_millis(10)),
+                }
+            }
+        });
+        Delay { stop }
+    }
+
+    /// Reads `from` and writes what it read to `into`, each chunk `DELAY` after it came.
+    fn pump(mut from: TcpStream, mut into: TcpStream) {
+        let (tx, rx) = mpsc::sync_channel::<(Instant, Vec<u8>)>(64);
+        std::thread::spawn(move || {
+            let mut buf = vec![0u8; 16 * 1024];
+            while let Ok(n @ 1..) = from.read(&mut buf) {
+                if tx
+                    .send((Instant::now() + DELAY, buf[..n].to_vec()))
+                    .is_err()
+                {
+                    break;
+                }
+            }
+        });
+        std::thread::spawn(move || {
+            for (due, bytes) in rx {
+                std::thread::sleep(due.saturating_duration_since(Instant::now()));
+                if into.write_all(&bytes).is_err() {
+                    break;
+                }
+            }
+            let _ = into.shutdown(std::net::Shutdown::Both);
+        });
+    }
+}
+
+impl Drop for Delay {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+}
+
 fn now_ms() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -109,9 +182,14 @@ fn now_ms() -> u64 {
         .as_millis() as u64
 }
 
-/// What a watcher across the link printed: (frame, received at, unix ms) per frame, and
-/// the stream it watched.
-fn watch_across(link: &SlowLink, server: &Server, budget: Option<&str>) -> (Vec<(u64, u64)>, u64) {
+/// What a watcher across the link, reaching the server at `endpoint`, printed: (frame,
+/// received at, unix ms) per frame, and the stream it watched.
+fn watch_across(
+    link: &SlowLink,
+    server: &Server,
+    endpoint: &str,
+    budget: Option<&str>,
+) -> (Vec<(u64, u64)>, u64) {
     let mut args = vec![
         "netns".to_string(),
         "exec".into(),
@@ -120,7 +198,7 @@ fn watch_across(link: &SlowLink, server: &Server, budget: Option<&str>) -> (Vec<
         "--world".into(),
         server.world.clone(),
         "--connect".into(),
-        server.endpoint.clone(),
+        endpoint.to_string(),
         "watch".into(),
         "--json".into(),
         "--seconds".into(),
@@ -167,12 +245,19 @@ fn a_viewer_on_a_slow_link_keeps_up_on_the_stream_its_budget_fits() {
         Ok(link) => link,
         Err(e) => panic!("cannot make the slow link (the test needs root): {e}"),
     };
-    let port = TcpListener::bind(format!("{}:0", link.host_ip))
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let free_port = || {
+        TcpListener::bind(format!("{}:0", link.host_ip))
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port()
+    };
+    let port = free_port();
     let endpoint = format!("tcp/{}:{port}", link.host_ip);
+    // The watchers' way to the server: through the relay, which adds the delay.
+    let relay_at = format!("{}:{}", link.host_ip, free_port());
+    let _delay = Delay::start(&relay_at, format!("{}:{port}", link.host_ip));
+    let delayed = format!("tcp/{relay_at}");
     let scene = scene("emitters.toml");
     let server = Server::launch_at(&endpoint, "slow-link", &["--scene", &scene]);
     let client = server.client();
@@ -226,8 +311,8 @@ fn a_viewer_on_a_slow_link_keeps_up_on_the_stream_its_budget_fits() {
         info.streams
     );
 
-    let (careful, every) = watch_across(&link, &server, Some(BUDGET));
-    let (greedy, _) = watch_across(&link, &server, None);
+    let (careful, every) = watch_across(&link, &server, &delayed, Some(BUDGET));
+    let (greedy, _) = watch_across(&link, &server, &delayed, None);
     stop.store(true, Ordering::Relaxed);
     feeder.join().unwrap();
     recorder.join().unwrap();
@@ -270,7 +355,7 @@ fn a_viewer_on_a_slow_link_keeps_up_on_the_stream_its_budget_fits() {
         "the full stream kept up over the slow link ({greedy_share:.2} of frames, {greedy_lag:?} behind): the test's link is not slow"
     );
     eprintln!(
-        "slow link {LINK}: the stream of one in {every} kept {:.0}% of its frames once joined, {lag:?} behind at worst; every step kept {:.0}%, {greedy_lag:?} behind",
+        "slow link {LINK}, {DELAY:?} each way: the stream of one in {every} kept {:.0}% of its frames once joined, {lag:?} behind at worst; every step kept {:.0}%, {greedy_lag:?} behind",
         half.len() as f64 * 100.0 / span as f64,
         greedy_share * 100.0
     );

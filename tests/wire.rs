@@ -14,7 +14,7 @@ fn the_wire_report_writes_its_table_between_the_markers() {
         .filter(|l| l.starts_with("| ") && l.contains(".toml"))
         .map(|l| l.split('|').map(str::trim).collect())
         .collect();
-    assert_eq!(rows.len(), 10, "{text}");
+    assert_eq!(rows.len(), 11, "{text}");
     for row in &rows {
         // Bodies and particles a frame, then bytes a frame: a resting world still sends
         // its header.

@@ -21,19 +21,17 @@ import threading
 import time
 import uuid
 
-PROTOCOL_VERSION = 4
+PROTOCOL_VERSION = 5
 MAX_STEPS_A_FRAME = 64
 MAX_TOKENS = 4096  # liveliness tokens one query keeps, as the Rust client
 FINE = 2.0 ** -24
-# Position, displacement and acceleration steps, in FINE units.
-POS_STEP, DISP_STEP, ACC_STEP = 1 << 14, 1 << 10, 1 << 6
+# The step of positions and displacements (1/1024 units), in FINE units.
+POS_STEP = 1 << 14
 PARTICLE_QUANTUM = 1.0 / 1024.0
 PARTICLE_VEL_QUANTUM = 1.0 / 256.0
 COLOR_SCALE = 31.875
 KIND_DELTA, KIND_KEY, KIND_STATICS, KIND_RESYNC = 0, 1, 2, 3
-NEW, POS, VEL, COLLIDED, REMOVED, ACC, SAME_SHAPE, SAME_GROUP = 0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80
-HALT = 0x40  # in a body record that is not NEW
-Y_ONLY = 0x80  # in a body record that is not NEW: each correction is its y alone
+NEW, POS, VEL, COLLIDED, REMOVED, SAME_SHAPE, SAME_GROUP = 0x01, 0x02, 0x04, 0x08, 0x10, 0x40, 0x80
 FROZEN, SAME_MOTION, SAME_LOOK = 0x20, 0x40, 0x80  # in a NEW particle record
 FREEZE_X, FREEZE_Y = 0x20, 0x40  # in a particle record that is not NEW
 I64 = 1 << 64
@@ -70,6 +68,89 @@ STATS = ("step_ms", "contacts", "relaxation_iterations", "deepest_penetration", 
          "particle_contacts", "overruns", "dynamic_bodies", "particles", "emitters",
          "energy_change", "residual")
 STATS_FORMAT = "<fIIffIIIIIff"
+
+
+class RangeDecoder:
+    """The adaptive binary range decoder of a delta's motion (protocol/src/frame/motion.rs):
+    32-bit range, 11-bit probabilities moving 1/32 of the way to each bit; zeros past the
+    end of its bytes."""
+
+    def __init__(self, data):
+        self.data, self.at, self.range, self.code = data, 0, 0xFFFFFFFF, 0
+        for _ in range(4):
+            self.code = ((self.code << 8) | self._next()) & 0xFFFFFFFF
+
+    def _next(self):
+        b = self.data[self.at] if self.at < len(self.data) else 0
+        self.at += 1
+        return b
+
+    def _normalize(self):
+        while self.range < 1 << 24:
+            self.range = (self.range << 8) & 0xFFFFFFFF
+            self.code = ((self.code << 8) | self._next()) & 0xFFFFFFFF
+
+    def bit(self, probs, i):
+        p = probs[i]
+        bound = (self.range >> 11) * p
+        if self.code >= bound:
+            self.code -= bound
+            self.range -= bound
+            probs[i] = p - (p >> 5)
+            bit = 1
+        else:
+            self.range = bound
+            probs[i] = p + ((2048 - p) >> 5)
+            bit = 0
+        self._normalize()
+        return bit
+
+    def even(self):
+        self.range >>= 1
+        bit = 0
+        if self.code >= self.range:
+            self.code -= self.range
+            bit = 1
+        self._normalize()
+        return bit
+
+
+class MotionModel:
+    """The probabilities of one delta's motion, fresh for each frame; contexts as the Rust
+    `Model`: axis, speed class of d (0, within 3 steps, beyond), the residual of the body
+    before (0, 1, more)."""
+
+    def __init__(self):
+        self.zero = [1024] * 18  # [axis][speed][near]
+        self.sign = [1024] * 6  # [axis][sign of d]
+        self.klass = [1024] * 96  # [axis][speed][k, 16]
+        self.low = [1024] * 96  # [axis][k, 16][3]
+        self.collided = [1024] * 2
+        self.before = [0, 0]
+
+    def residuals(self, c, d):
+        out = [0, 0]
+        for axis in range(2):
+            v = abs(d[axis])
+            speed = 0 if v == 0 else (1 if v <= 3 * POS_STEP else 2)
+            near = min(abs(self.before[axis]), 2)
+            if c.bit(self.zero, axis * 9 + speed * 3 + near):
+                sign = (d[axis] > 0) - (d[axis] < 0) + 1
+                negative = c.bit(self.sign, axis * 3 + sign)
+                k = 0
+                while k < 62 and c.bit(self.klass, axis * 48 + speed * 16 + min(k, 15)):
+                    k += 1
+                m = 1
+                for j in range(k - 1, -1, -1):
+                    if k - j <= 2:
+                        top = (m & 1) if k - j == 2 else 0
+                        bit = c.bit(self.low, axis * 48 + min(k, 15) * 3 + (k - j) - 1 + top)
+                    else:
+                        bit = c.even()
+                    m = (m << 1) | bit
+                out[axis] = -m if negative else m
+            self.before[axis] = out[axis]
+        return out
 
 
 class DecodeError(Exception):
@@ -186,19 +267,19 @@ class FrameDecoder:
             emitters.append({"x": x, "y": y, "remaining": r.varint()})
         # Copies on write: a payload refused half-way leaves the state held untouched.
         bodies = {} if kind != KIND_DELTA else dict(self.bodies)
-        # Every body moves on as predicted; a record corrects what the prediction missed.
-        if kind == KIND_DELTA:
-            for k, b in bodies.items():
-                d = [wrap(b["d"][i] + b["a"][i]) for i in range(2)]
-                bodies[k] = dict(b, d=d, p=[wrap(b["p"][i] + d[i]) for i in range(2)], dt=frame_dt)
-        units = (1, 1, 1) if kind == KIND_RESYNC else (POS_STEP, DISP_STEP, ACC_STEP)
-        prev = {"id": "", "group": "", "shape": None, "p": [0, 0]}
+        named = set()  # keys a record removes or sends whole
+        units = (1, 1) if kind == KIND_RESYNC else (POS_STEP, POS_STEP)
+        # Ids and positions are written against the previous record of the same kind
+        # (rect, circle).
+        prev = {"id": ["", ""], "group": "", "shape": None, "p": [[0, 0], [0, 0]]}
         key = 0
         for _ in range(r.varint()):
             key += r.varint()
             flags = r.take(1)[0]
+            named.add(key)
             if flags & REMOVED:
-                bodies.pop(key, None)
+                if bodies.pop(key, None) is None:
+                    raise DecodeError(f"removal of unknown body {key}")
                 continue
             if flags & NEW:
                 if flags & SAME_SHAPE:
@@ -207,34 +288,42 @@ class FrameDecoder:
                     circle, size = prev["shape"]
                 else:
                     circle = r.take(1)[0] != 0
-                    size = list(r.unpack("<ff"))
+                    (w,) = r.unpack("<f")
+                    size = [w, w] if circle else [w, r.unpack("<f")[0]]
+                sk = int(circle)  # the shape's kind: 0 rect, 1 circle
                 shared = r.varint()
-                if shared > len(prev["id"].encode("utf-8")):
+                if shared > len(prev["id"][sk].encode("utf-8")):
                     raise DecodeError(f"body {key}: id prefix of {shared} bytes")
                 try:
-                    ident = prev["id"].encode("utf-8")[:shared].decode("utf-8") + r.text()
+                    ident = prev["id"][sk].encode("utf-8")[:shared].decode("utf-8") + r.text()
                 except UnicodeDecodeError:
                     raise DecodeError(f"body {key}: id prefix of {shared} bytes") from None
                 group = prev["group"] if flags & SAME_GROUP else r.text()
-                pu = [wrap(prev["p"][0] + r.svarint()), wrap(prev["p"][1] + r.svarint())]
+                pu = [wrap(prev["p"][sk][0] + r.svarint()), wrap(prev["p"][sk][1] + r.svarint())]
                 d = [wrap(r.svarint() * units[1]), wrap(r.svarint() * units[1])] if flags & VEL else [0, 0]
-                a = [wrap(r.svarint() * units[2]), wrap(r.svarint() * units[2])] if flags & ACC else [0, 0]
-                prev = {"id": ident, "group": group, "shape": (circle, size), "p": pu}
+                prev["id"][sk], prev["p"][sk] = ident, pu
+                prev.update(group=group, shape=(circle, size))
                 bodies[key] = {"id": ident, "group": group, "circle": circle, "size": size,
-                               "p": [wrap(v * units[0]) for v in pu], "d": d, "a": a, "dt": frame_dt}
+                               "p": [wrap(v * units[0]) for v in pu], "d": d, "dt": frame_dt,
+                               "collided": bool(flags & COLLIDED)}
             else:
-                b = bodies.get(key)
-                if b is None:
-                    raise DecodeError(f"update of unknown body {key}")
-                b = bodies[key] = dict(b)
-                for flag, field, unit in ((POS, "p", POS_STEP), (VEL, "d", DISP_STEP), (ACC, "a", ACC_STEP)):
-                    if flags & flag:
-                        x = 0 if flags & Y_ONLY else r.svarint() * unit
-                        y = r.svarint() * unit
-                        b[field] = [wrap(b[field][0] + x), wrap(b[field][1] + y)]
-                if flags & HALT:
-                    b["d"], b["a"] = [0, 0], [0, 0]
-            bodies[key]["collided"] = bool(flags & COLLIDED)
+                raise DecodeError(f"body {key}: a record neither NEW nor REMOVED")
+        if kind == KIND_DELTA:
+            # The motion: every other body held moves on, p + d, and its residuals (in
+            # POS_STEPs) correct both p and d.
+            c = RangeDecoder(r.take(r.varint()))
+            model = MotionModel()
+            for key in sorted(self.bodies):
+                if key in named:
+                    continue
+                b = self.bodies[key]
+                res = model.residuals(c, b["d"])
+                changed = c.bit(model.collided, int(b["collided"]))
+                d = [wrap(b["d"][i] + res[i] * POS_STEP) for i in range(2)]
+                p = [wrap(b["p"][i] + b["d"][i] + res[i] * POS_STEP) for i in range(2)]
+                bodies[key] = dict(b, p=p, d=d, dt=frame_dt, collided=b["collided"] != bool(changed))
+            if c.at < len(c.data):
+                raise DecodeError(f"motion of {len(c.data)} bytes, {len(c.data) - c.at} of them unread")
         # Every particle moves on as the engine moves it (f32); a record corrects it.
         dt32 = f32(dt)
         particles = {}

@@ -24,4 +24,4 @@ pub mod client;
 pub mod net;
 
 /// The protocol's version: the frame layout's version byte.
-pub const PROTOCOL_VERSION: u8 = 4;
+pub const PROTOCOL_VERSION: u8 = 5;

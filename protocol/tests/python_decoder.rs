@@ -149,6 +149,8 @@ fn check(scene_file: &str, steps: u64, resync_at: u64, stride: u64) {
 fn the_python_decoder_holds_the_rust_decoders_state_bit_for_bit() {
     // Bodies falling, piling and resting, with key frames every 60.
     check("suite/rain.toml", 240, 130, 1);
+    // Rects and circles of every size, each moving its own way.
+    check("wire/rain-irregular.toml", 150, 70, 1);
     // Particles, and bodies pushed about.
     check("emitters.toml", 240, 100, 1);
     // One frame in four: particles move four steps a frame.

@@ -209,7 +209,6 @@ mod tests {
             size,
             p: [q(pos[0]), q(pos[1])],
             d: [0, 0],
-            a: [0, 0],
             dt: 0.0,
             collided,
         }

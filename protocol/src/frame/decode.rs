@@ -3,13 +3,13 @@
 //! against the bytes that remain before anything is allocated for it, and a payload that
 //! fails anywhere leaves the state as it was.
 
+use super::motion::{Model, RangeDecoder};
 use super::records::{self, Change, Section};
 use super::wire::Reader;
 use super::{
-    Body, DecodeError, EmitterIn, FrameStats, Particle, ACC, ACC_STEP, COLLIDED, DISP_STEP,
-    FREEZE_X, FREEZE_Y, FROZEN, HALT, KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW,
-    PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS, POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK,
-    SAME_MOTION, SAME_SHAPE, VEL, Y_ONLY,
+    Body, DecodeError, EmitterIn, FrameStats, Particle, COLLIDED, FREEZE_X, FREEZE_Y, FROZEN,
+    KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS,
+    POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK, SAME_MOTION, SAME_SHAPE, VEL,
 };
 
 /// What a receiver knows of a world, kept up to date frame by frame.
@@ -243,11 +243,9 @@ impl FrameDecoder {
             // The state just replaced (a real key frame then a stray one: the real one's).
             self.before = self.synced.then(|| Box::new(held));
         }
-        // Every body without a record moves on as predicted.
-        records::fold(&mut self.bodies, bodies, patch_body, |b| {
-            (b.p, b.d) = b.predicted();
-            b.dt = frame_dt;
-        });
+        // In a delta every body held has a record or its motion; in a key frame every
+        // body is new.
+        records::fold(&mut self.bodies, bodies, patch_body, |_| {});
         self.particles = particles;
         self.emitters = emitters;
         self.frame = header.frame;
@@ -279,13 +277,12 @@ impl FrameDecoder {
 struct BodyPatch {
     p: [i64; 2],
     d: [i64; 2],
-    a: [i64; 2],
     dt: f64,
     collided: bool,
 }
 
 fn patch_body(b: &mut Body, p: BodyPatch) {
-    (b.p, b.d, b.a, b.dt, b.collided) = (p.p, p.d, p.a, p.dt, p.collided);
+    (b.p, b.d, b.dt, b.collided) = (p.p, p.d, p.dt, p.collided);
 }
 
 /// Two signed varints, times `unit` (wrapping, as the encoder computes).
@@ -299,10 +296,12 @@ fn pair(r: &mut Reader, unit: i64) -> Result<[i64; 2], DecodeError> {
 /// The previous NEW record of a section, which the next one is read against.
 #[derive(Default)]
 struct Previous {
-    id: String,
+    /// Of the previous record of each kind (rect, circle).
+    id: [String; 2],
     group: String,
     shape: Option<(bool, [f32; 2])>,
-    p: [i64; 2],
+    /// Of the previous record of each kind (rect, circle).
+    p: [[i64; 2]; 2],
 }
 
 fn read_new_body(
@@ -310,23 +309,26 @@ fn read_new_body(
     prev: &mut Previous,
     key: u32,
     flags: u8,
-    units: [i64; 3],
+    units: [i64; 2],
     dt: f64,
 ) -> Result<Body, DecodeError> {
     let (circle, size) = if flags & SAME_SHAPE != 0 {
         prev.shape
             .ok_or_else(|| DecodeError::Malformed(format!("body {key}: no shape before")))?
     } else {
-        (r.u8()? != 0, [r.f32()?, r.f32()?])
+        let circle = r.u8()? != 0;
+        let w = r.f32()?;
+        (circle, [w, if circle { w } else { r.f32()? }])
     };
+    let kind = circle as usize;
     let shared = usize::try_from(r.varint()?).unwrap_or(usize::MAX);
-    if shared > prev.id.len() || !prev.id.is_char_boundary(shared) {
+    if shared > prev.id[kind].len() || !prev.id[kind].is_char_boundary(shared) {
         return Err(DecodeError::Malformed(format!(
             "body {key}: id prefix of {shared} bytes"
         )));
     }
     let mut id = String::with_capacity(shared + 8);
-    id.push_str(&prev.id[..shared]);
+    id.push_str(&prev.id[kind][..shared]);
     id.push_str(&r.str()?);
     let group = if flags & SAME_GROUP != 0 {
         prev.group.clone()
@@ -335,8 +337,8 @@ fn read_new_body(
     };
     let step = [r.svarint()?, r.svarint()?];
     let pu = [
-        prev.p[0].wrapping_add(step[0]),
-        prev.p[1].wrapping_add(step[1]),
+        prev.p[kind][0].wrapping_add(step[0]),
+        prev.p[kind][1].wrapping_add(step[1]),
     ];
     let p = pu.map(|v| v.wrapping_mul(units[0]));
     let d = if flags & VEL != 0 {
@@ -344,15 +346,10 @@ fn read_new_body(
     } else {
         [0; 2]
     };
-    let a = if flags & ACC != 0 {
-        pair(r, units[2])?
-    } else {
-        [0; 2]
-    };
-    prev.id.clone_from(&id);
+    prev.id[kind].clone_from(&id);
     prev.group.clone_from(&group);
     prev.shape = Some((circle, size));
-    prev.p = pu;
+    prev.p[kind] = pu;
     Ok(Body {
         key,
         id,
@@ -361,26 +358,26 @@ fn read_new_body(
         size,
         p,
         d,
-        a,
         dt,
         collided: flags & COLLIDED != 0,
     })
 }
 
+/// Reads a body section: its records, and in a delta the motion of every body held that
+/// no record removes or replaces (`motion`), as patches in increasing key order.
 fn read_bodies(
     r: &mut Reader,
     held: &[Body],
     kind: u8,
     dt: f64,
 ) -> Result<Section<Body, BodyPatch>, DecodeError> {
-    let fresh = kind != KIND_DELTA;
     let units = if kind == KIND_RESYNC {
-        [1, 1, 1]
+        [1, 1]
     } else {
-        [POS_STEP, DISP_STEP, ACC_STEP]
+        [POS_STEP, POS_STEP]
     };
     let mut prev = Previous::default();
-    records::read(r, held, |r, key, flags, existing| {
+    let mut section = records::read(r, held, |r, key, flags, existing| {
         if flags & REMOVED != 0 {
             return match existing {
                 Some(_) => Ok(Change::Removed),
@@ -394,39 +391,57 @@ fn read_bodies(
                 r, &mut prev, key, flags, units, dt,
             )?));
         }
-        let b = existing.ok_or_else(|| {
-            DecodeError::Malformed(format!(
-                "update of unknown body {key}{}",
-                if fresh { " in a key frame" } else { "" }
-            ))
-        })?;
-        let (mut p, mut d) = b.predicted();
-        let mut a = b.a;
-        for (flag, unit, v) in [
-            (POS, POS_STEP, &mut p),
-            (VEL, DISP_STEP, &mut d),
-            (ACC, ACC_STEP, &mut a),
-        ] {
-            if flags & flag != 0 {
-                let r = if flags & Y_ONLY != 0 {
-                    [0, r.svarint()?.wrapping_mul(unit)]
-                } else {
-                    pair(r, unit)?
-                };
-                *v = [v[0].wrapping_add(r[0]), v[1].wrapping_add(r[1])];
-            }
+        Err(DecodeError::Malformed(format!(
+            "body {key}: a record neither NEW nor REMOVED"
+        )))
+    })?;
+    if kind == KIND_DELTA {
+        let n = usize::try_from(r.varint()?).unwrap_or(usize::MAX);
+        section.patches = motion(r.take(n)?, held, &section, dt)?;
+    }
+    Ok(section)
+}
+
+/// Decodes a delta's motion: for each body held that `section` does not remove or
+/// replace, its residuals and whether its collided flag changed, applied to its
+/// prediction.
+fn motion(
+    bytes: &[u8],
+    held: &[Body],
+    section: &Section<Body, BodyPatch>,
+    dt: f64,
+) -> Result<Vec<(u32, BodyPatch)>, DecodeError> {
+    let mut coder = RangeDecoder::new(bytes);
+    let mut model = Model::new();
+    let mut removed = section.removed.iter().peekable();
+    let mut news = section.news.iter().map(|b| b.key).peekable();
+    let mut patches = Vec::with_capacity(held.len());
+    for b in held {
+        while removed.next_if(|&&k| k < b.key).is_some() {}
+        while news.next_if(|&k| k < b.key).is_some() {}
+        if removed.next_if(|&&k| k == b.key).is_some() || news.next_if(|&k| k == b.key).is_some() {
+            continue;
         }
-        if flags & HALT != 0 {
-            (d, a) = ([0; 2], [0; 2]);
+        let (mut p, mut d) = (b.predicted(), b.d);
+        let r = model.residuals(&mut coder, d, POS_STEP, [0; 2]);
+        let changed = model.collided(&mut coder, b.collided, false);
+        for i in 0..2 {
+            let step = r[i].wrapping_mul(POS_STEP);
+            p[i] = p[i].wrapping_add(step);
+            d[i] = d[i].wrapping_add(step);
         }
-        Ok(Change::Patch(BodyPatch {
-            p,
-            d,
-            a,
-            dt,
-            collided: flags & COLLIDED != 0,
-        }))
-    })
+        patches.push((
+            b.key,
+            BodyPatch {
+                p,
+                d,
+                dt,
+                collided: b.collided != changed,
+            },
+        ));
+    }
+    coder.finish()?;
+    Ok(patches)
 }
 
 /// The previous NEW particle record of a section, which the next one is read against.

@@ -2,14 +2,14 @@
 //! (deltas against what receivers were last told, or key frames) and statics snapshots
 //! flow out as bytes.
 
+use super::motion::{Model, RangeEncoder};
 use super::records::{diff, Keyed, Records};
 use super::wire::{put_str, put_svarint, put_varint};
 use super::{
-    Body, BodyIn, EmitterIn, FrameStats, Particle, ParticlesIn, ACC, ACC_STEP, COLLIDED,
-    COLOR_SCALE, DISP_STEP, DISP_TOLERANCE, FINE, FREEZE_X, FREEZE_Y, FROZEN, HALT, HEADER_BYTES,
-    KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM,
-    PARTICLE_VEL_QUANTUM, POS, POS_STEP, POS_TOLERANCE, SAME_GROUP, SAME_LOOK, SAME_MOTION,
-    SAME_SHAPE, VEL, Y_ONLY,
+    Body, BodyIn, EmitterIn, FrameStats, Particle, ParticlesIn, COLLIDED, COLOR_SCALE, FINE,
+    FREEZE_X, FREEZE_Y, FROZEN, HEADER_BYTES, KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS,
+    MAGIC, NEW, PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS, POS_STEP, SAME_GROUP, SAME_LOOK,
+    SAME_MOTION, SAME_SHAPE, VEL,
 };
 
 fn quantize(v: f64, quantum: f64) -> i64 {
@@ -81,10 +81,6 @@ struct Sent {
     body: Body,
     /// The body's true position at the last frame, in [`FINE`] units.
     truth: [i64; 2],
-    /// Its true displacement over the last frame.
-    disp: [i64; 2],
-    /// The change of that displacement at the last frame.
-    accel: [i64; 2],
 }
 
 impl Keyed for Sent {
@@ -97,19 +93,18 @@ fn fine(v: [f64; 2]) -> [i64; 2] {
     v.map(|c| quantize(c, FINE))
 }
 
-/// A body's position, displacement and acceleration as a key frame or a snapshot states
-/// them: rounded to their quanta.
-fn rounded(b: &BodyIn, disp: [i64; 2], accel: [i64; 2]) -> [[i64; 2]; 3] {
+/// A body's position and displacement as a NEW record states them: rounded to their
+/// quanta.
+fn rounded(b: &BodyIn, disp: [i64; 2]) -> [[i64; 2]; 2] {
     [
         fine(b.pos).map(|v| round_to(v, POS_STEP)),
-        disp.map(|v| round_to(v, DISP_STEP)),
-        accel.map(|v| round_to(v, ACC_STEP)),
+        disp.map(|v| round_to(v, POS_STEP)),
     ]
 }
 
-/// A body as a key frame or a snapshot states it (see [`rounded`]).
-fn body_of(b: &BodyIn, disp: [i64; 2], accel: [i64; 2], dt: f64) -> Body {
-    let [p, d, a] = rounded(b, disp, accel);
+/// A body as a NEW record states it (see [`rounded`]).
+fn body_of(b: &BodyIn, disp: [i64; 2], dt: f64) -> Body {
+    let [p, d] = rounded(b, disp);
     Body {
         key: b.key,
         id: b.id.to_string(),
@@ -118,27 +113,28 @@ fn body_of(b: &BodyIn, disp: [i64; 2], accel: [i64; 2], dt: f64) -> Body {
         size: [b.size[0] as f32, b.size[1] as f32],
         p,
         d,
-        a,
         dt,
         collided: b.collided,
     }
 }
 
-/// The units NEW records state `p`, `d` and `a` in: the quanta, or [`FINE`] units in a
+/// The units NEW records state `p` and `d` in: the quanta, or [`FINE`] units in a
 /// resync key frame.
 #[derive(Clone, Copy)]
-struct Units([i64; 3]);
+struct Units([i64; 2]);
 
-const COARSE: Units = Units([POS_STEP, DISP_STEP, ACC_STEP]);
-const EXACT: Units = Units([1, 1, 1]);
+const COARSE: Units = Units([POS_STEP, POS_STEP]);
+const EXACT: Units = Units([1, 1]);
 
 /// The previous NEW record of a section, which the next one is written against.
 #[derive(Default)]
 struct Previous {
-    id: String,
+    /// Of the previous record of each kind (rect, circle).
+    id: [String; 2],
     group: String,
     shape: Option<(bool, [f32; 2])>,
-    p: [i64; 2],
+    /// Of the previous record of each kind (rect, circle).
+    p: [[i64; 2]; 2],
 }
 
 /// The length of the prefix `a` and `b` share, at a character boundary.
@@ -151,13 +147,11 @@ fn shared_prefix(a: &str, b: &str) -> usize {
 }
 
 fn put_new_body(out: &mut Vec<u8>, prev: &mut Previous, b: &Body, units: Units) {
-    let [pu, du, au] = units.0;
+    let [pu, du] = units.0;
     let same_shape = prev.shape == Some((b.circle, b.size));
     let same_group = prev.group == b.group;
     out.push(
-        NEW | POS
-            | if b.d != [0, 0] { VEL } else { 0 }
-            | if b.a != [0, 0] { ACC } else { 0 }
+        NEW | if b.d != [0, 0] { VEL } else { 0 }
             | if b.collided { COLLIDED } else { 0 }
             | if same_shape { SAME_SHAPE } else { 0 }
             | if same_group { SAME_GROUP } else { 0 },
@@ -165,33 +159,32 @@ fn put_new_body(out: &mut Vec<u8>, prev: &mut Previous, b: &Body, units: Units) 
     if !same_shape {
         out.push(b.circle as u8);
         out.extend_from_slice(&b.size[0].to_le_bytes());
-        out.extend_from_slice(&b.size[1].to_le_bytes());
+        if !b.circle {
+            out.extend_from_slice(&b.size[1].to_le_bytes());
+        }
     }
-    let shared = shared_prefix(&prev.id, &b.id);
+    let kind = b.circle as usize;
+    let shared = shared_prefix(&prev.id[kind], &b.id);
     put_varint(out, shared as u64);
     put_str(out, &b.id[shared..]);
     if !same_group {
         put_str(out, &b.group);
     }
     let p = b.p.map(|v| v / pu);
-    put_svarint(out, p[0].wrapping_sub(prev.p[0]));
-    put_svarint(out, p[1].wrapping_sub(prev.p[1]));
+    put_svarint(out, p[0].wrapping_sub(prev.p[kind][0]));
+    put_svarint(out, p[1].wrapping_sub(prev.p[kind][1]));
     if b.d != [0, 0] {
         put_svarint(out, b.d[0] / du);
         put_svarint(out, b.d[1] / du);
     }
-    if b.a != [0, 0] {
-        put_svarint(out, b.a[0] / au);
-        put_svarint(out, b.a[1] / au);
-    }
-    prev.id.clear();
-    prev.id.push_str(&b.id);
+    prev.id[kind].clear();
+    prev.id[kind].push_str(&b.id);
     if !same_group {
         prev.group.clear();
         prev.group.push_str(&b.group);
     }
     prev.shape = Some((b.circle, b.size));
-    prev.p = p;
+    prev.p[kind] = p;
 }
 
 /// The previous NEW particle record of a section, which the next one is written against.
@@ -317,10 +310,7 @@ pub fn encode_statics(frame: u64, time: f64, statics: &[BodyIn]) -> Vec<u8> {
         &FrameStats::default(),
     );
     put_varint(&mut out, 0);
-    let mut bodies: Vec<Body> = statics
-        .iter()
-        .map(|b| body_of(b, [0; 2], [0; 2], 0.0))
-        .collect();
+    let mut bodies: Vec<Body> = statics.iter().map(|b| body_of(b, [0; 2], 0.0)).collect();
     bodies.sort_by_key(|b| b.key);
     put_bodies(&mut out, &bodies, COARSE);
     put_varint(&mut out, 0);
@@ -459,17 +449,18 @@ impl FrameEncoder {
     }
 
     /// The bodies' section: in a key frame every body NEW, its state rounded to the
-    /// quanta; in a delta, a record for each body the prediction missed by more than half
-    /// a quantum (and for each new, changed or removed body). The truth about each body
-    /// (its last position, displacement and acceleration) is kept across key frames.
+    /// quanta; in a delta, NEW and REMOVED records for bodies added, replaced or gone,
+    /// then the motion of every other body (its residuals, range-coded). The truth about
+    /// each body (its last position) is kept across key frames.
     fn encode_bodies(&mut self, out: &mut Vec<u8>, key: bool, dt: f64, bodies: &[BodyIn]) {
-        let mut records = Records::with_capacity(bodies.len() * if key { 12 } else { 4 });
+        let mut records = Records::with_capacity(if key { bodies.len() * 12 } else { 16 });
         let mut prev = Previous::default();
         let mut sent = std::mem::take(&mut self.bodies);
         if key {
             // A key frame states what is; receivers drop what it does not name.
             sent.retain(|s| bodies.binary_search_by_key(&s.body.key, |b| b.key).is_ok());
         }
+        let mut motion = (!key).then(|| (RangeEncoder::new(), Model::new()));
         self.bodies = diff(
             sent,
             bodies.iter(),
@@ -489,87 +480,43 @@ impl FrameEncoder {
                     // New, or a different body under a reused key: sent whole, its
                     // displacement from its velocity.
                     let disp = fine(now.vel.map(|v| v * dt));
-                    let body = body_of(now, disp, [0; 2], dt);
+                    let body = body_of(now, disp, dt);
                     put_new_body(records.start(now.key), &mut prev, &body, COARSE);
-                    return Sent {
-                        body,
-                        truth,
-                        disp,
-                        accel: [0; 2],
-                    };
+                    return Sent { body, truth };
                 };
                 let disp = [
                     truth[0].wrapping_sub(old.truth[0]),
                     truth[1].wrapping_sub(old.truth[1]),
                 ];
-                let accel = [
-                    disp[0].wrapping_sub(old.disp[0]),
-                    disp[1].wrapping_sub(old.disp[1]),
-                ];
-                (old.truth, old.disp, old.accel) = (truth, disp, accel);
+                old.truth = truth;
                 let b = &mut old.body;
                 b.dt = dt;
-                if key {
+                let Some((coder, model)) = motion.as_mut() else {
                     // The body it already is, restated: no new id or group strings.
-                    [b.p, b.d, b.a] = rounded(now, disp, accel);
+                    [b.p, b.d] = rounded(now, disp);
                     b.collided = now.collided;
                     put_new_body(records.start(now.key), &mut prev, b, COARSE);
                     return old;
-                }
-                let (p, d) = b.predicted();
-                let strayed = (0..2).any(|i| truth[i].wrapping_sub(p[i]).abs() > POS_TOLERANCE);
-                let rp: [i64; 2] = if strayed {
-                    std::array::from_fn(|i| steps(truth[i].wrapping_sub(p[i]), POS_STEP))
-                } else {
-                    [0; 2]
                 };
-                let off = |i: usize| disp[i].wrapping_sub(d[i]).abs() > DISP_TOLERANCE;
-                let moved = rp != [0, 0];
-                let record = moved || off(0) || off(1) || b.collided != now.collided;
-                // A record sets the displacement and its change to the truth's: to 0 at
-                // once for a body that holds still, else corrected by a quantum.
-                let still = disp.iter().all(|v| v.abs() <= DISP_STEP / 2);
-                let halt = record && still && (d != [0, 0] || b.a != [0, 0]);
-                let (rd, ra) = if record && !halt {
-                    (
-                        [0, 1].map(|i| steps(disp[i].wrapping_sub(d[i]), DISP_STEP)),
-                        [0, 1].map(|i| steps(accel[i].wrapping_sub(b.a[i]), ACC_STEP)),
-                    )
-                } else {
-                    ([0; 2], [0; 2])
-                };
-                let (sped, accelerated) = (rd != [0, 0], ra != [0, 0]);
-                if record {
-                    let corrections = [(moved, rp), (sped, rd), (accelerated, ra)];
-                    let y_only = corrections.iter().all(|&(on, r)| !on || r[0] == 0);
-                    let out = records.start(now.key);
-                    out.push(
-                        (moved as u8 * POS)
-                            | (sped as u8 * VEL)
-                            | (accelerated as u8 * ACC)
-                            | (halt as u8 * HALT)
-                            | (y_only as u8 * Y_ONLY)
-                            | (now.collided as u8 * COLLIDED),
-                    );
-                    for (_, r) in corrections.iter().filter(|(on, _)| *on) {
-                        if !y_only {
-                            put_svarint(out, r[0]);
-                        }
-                        put_svarint(out, r[1]);
-                    }
-                }
-                b.p = [0, 1].map(|i| p[i].wrapping_add(rp[i].wrapping_mul(POS_STEP)));
-                if halt {
-                    (b.d, b.a) = ([0; 2], [0; 2]);
-                } else {
-                    b.d = [0, 1].map(|i| d[i].wrapping_add(rd[i].wrapping_mul(DISP_STEP)));
-                    b.a = [0, 1].map(|i| b.a[i].wrapping_add(ra[i].wrapping_mul(ACC_STEP)));
+                let p = b.predicted();
+                let r = [0, 1].map(|i| steps(truth[i].wrapping_sub(p[i]), POS_STEP));
+                model.residuals(coder, b.d, POS_STEP, r);
+                model.collided(coder, b.collided, b.collided != now.collided);
+                for i in 0..2 {
+                    let step = r[i].wrapping_mul(POS_STEP);
+                    b.p[i] = p[i].wrapping_add(step);
+                    b.d[i] = b.d[i].wrapping_add(step);
                 }
                 b.collided = now.collided;
                 old
             },
         );
         records.finish(out);
+        if let Some((coder, _)) = motion {
+            let bytes = coder.finish();
+            put_varint(out, bytes.len() as u64);
+            out.extend_from_slice(&bytes);
+        }
     }
 
     /// The particles' section: NEW records for the born (and, in a key frame, for every

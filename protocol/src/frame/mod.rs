@@ -11,11 +11,11 @@
 //! frames: they are in the snapshot, fetched with a query and re-published when they
 //! change.
 //!
-//! # Layout, version 4 (all numbers little-endian)
+//! # Layout, version 5 (all numbers little-endian)
 //!
 //! ```text
 //! magic      3 bytes  "RCF"
-//! version    u8       4
+//! version    u8       5
 //! kind       u8       0 delta, 1 key frame, 2 statics snapshot, 3 resync key frame
 //! frame      u64      steps taken
 //! prev       u64      the frame this one follows in its stream (a delta applies only
@@ -28,56 +28,48 @@
 //!                     overruns u32, dynamic_bodies u32, particles u32, emitters u32,
 //!                     energy_change f32, residual f32
 //! emitters   varint n, then n x (x f32, y f32, remaining varint)
-//! bodies     varint n, then n body records, in increasing key order
+//! bodies     varint n, then n body records, in increasing key order; in a delta frame
+//!            then the motion of the bodies held (varint length, range-coded bytes)
 //! particles  varint n, then n particle records, in increasing id order
 //! ```
 //!
 //! A varint is LEB128 (7 bits a byte, low first); a signed varint is zigzag-encoded first.
 //!
-//! ## Bodies: predicted, corrected past a stated bound
+//! ## Bodies: predicted, and every frame the residual, range-coded
 //!
 //! A receiver holds each dynamic body's state in integers of [`FINE`] units (2^-24): its
-//! position `p`, its displacement over the last frame `d` and that displacement's change
-//! per frame `a`. At every delta frame, before reading its records, a receiver moves every
-//! body it holds one frame on, axis by axis:
+//! position `p` and its displacement over the last frame `d`. At every delta frame a
+//! receiver moves every body it holds on, axis by axis, `p <- p + d`, and the frame gives
+//! the residual `r` of each body and axis: how many [`POS_QUANTUM`]s (1/1024 units) the
+//! body's true position is from that prediction, rounded to the nearest. The receiver
+//! adds `r` quanta to both `p` and `d`. So a receiver's position is within
+//! [`POS_BOUND`] (1/2048 units) of the server's on each axis at every frame, and its
+//! displacement, what its position moved over the last frame, is within twice that of the
+//! body's. A body at rest, or moving steadily, has residuals of 0; a falling one, a
+//! residual that repeats. Its velocity is `d / (dt (frame - prev))`.
 //!
-//! ```text
-//! d <- d + a;  p <- p + d
-//! ```
-//!
-//! and a body record then corrects what the prediction missed. The server runs the same
-//! prediction on what receivers hold and sends a correction only when the body's true
-//! position is more than [`POS_BOUND`] away from it on an axis, or its true displacement
-//! more than [`DISP_BOUND`]: a receiver's position is within 1/2048 units of the server's,
-//! its displacement within 2^-12 units a frame, at every frame. A body falling
-//! freely, resting, or sliding at a steady deceleration needs no record at all. A
-//! receiver's velocity is `d / (dt (frame - prev))` (the displacement over the last frame
-//! over its time: the body's velocity in a step that moved it by its velocity alone).
+//! Body section of a delta frame: `n` varint, then `n` records of bodies new to receivers
+//! (NEW, whole; a body under a key receivers hold is replaced) or gone (REMOVED), then the
+//! motion: varint `L` and `L` bytes, the residuals of every other body receivers hold,
+//! in increasing key order, range-coded (`motion`, where the coding is laid out). In a
+//! key frame, a resync key frame and a snapshot, `n` NEW records and no motion.
 //!
 //! Body record: `key gap` varint (key minus the previous record's key, the first from 0),
 //! `flags` u8, then by flag:
 //! - `NEW` (0x01): the body whole. Unless `SAME_SHAPE` (0x40): shape u8 (0 rect,
-//!   1 circle), width f32, height f32 (a circle: 2r, 2r); else those of the previous NEW
-//!   record of the section. The id as the length of the prefix it shares with the previous
-//!   NEW record's id (varint), then the rest (varint length + UTF-8). Unless `SAME_GROUP`
-//!   (0x80): the group (varint length + UTF-8); else the previous NEW record's. Then `p` as
-//!   two signed varints, the change from the previous NEW record's `p` (from 0 for the
-//!   first); `d` if `VEL`, `a` if `ACC` (else 0), two signed varints each. In a key frame
-//!   and a snapshot these are in units of [`POS_QUANTUM`], [`DISP_QUANTUM`] and
-//!   [`ACC_QUANTUM`]; in a resync key frame (kind 3, the answer to the state query, which
-//!   restates what receivers hold mid-stream), in [`FINE`] units;
-//! - `POS` (0x02): a correction of `p`, two signed varints of [`POS_QUANTUM`];
-//! - `VEL` (0x04): a correction of `d`, two signed varints of [`DISP_QUANTUM`];
-//! - `ACC` (0x20): a correction of `a`, two signed varints of [`ACC_QUANTUM`];
-//! - `HALT` (0x40, in a record that is not NEW): the body holds still, `d` and `a` become 0;
-//! - `Y_ONLY` (0x80, in a record that is not NEW): every correction of the record (`POS`,
-//!   `VEL`, `ACC`) is one signed varint, its y; its x is 0 (a body moving along y alone,
-//!   as anything falling or resting under gravity, costs half). New in version 4;
-//!
-//! Corrections apply to the predicted state. A record the position or the displacement
-//! needs also corrects `d` and `a` towards the body's last displacement and its last
-//! change, so the prediction follows the body from there.
-//! - `COLLIDED` (0x08): the value of the collided flag (every record carries it);
+//!   1 circle), then a rect's width and height as two f32, a circle's diameter as one;
+//!   else those of the previous NEW record of the section. The id as the length of the
+//!   prefix it shares with the id of the previous NEW record of the same kind (rect or
+//!   circle; varint), then the rest (varint length + UTF-8). Unless `SAME_GROUP` (0x80):
+//!   the group (varint length + UTF-8); else the previous NEW record's. Then `p` as two
+//!   signed varints, the change from the `p` of the previous NEW record of the same kind
+//!   (from 0 for the first); `d` if `VEL` (0x04), two signed varints (else 0). In a key
+//!   frame, a delta and a snapshot these are in units of [`POS_QUANTUM`] (`d` within half
+//!   of one of the body's displacement over the last frame); in a resync key frame (kind
+//!   3, the answer to the state query, which restates what receivers hold mid-stream), in
+//!   [`FINE`] units;
+//! - `COLLIDED` (0x08): the value of the collided flag (in the motion: whether it
+//!   changed);
 //! - `REMOVED` (0x10): the body is gone; nothing follows.
 //!
 //! ## Particles: moved by every receiver as the engine moves them
@@ -122,6 +114,7 @@ use ricochet_engine::particles::{color_after, size_after};
 
 mod decode;
 mod encode;
+mod motion;
 mod records;
 #[cfg(test)]
 mod tests;
@@ -133,28 +126,14 @@ pub use encode::{encode_statics, FrameEncoder};
 /// A receiver holds bodies' positions, displacements and their changes in integers of
 /// this many units (2^-24).
 pub const FINE: f64 = 1.0 / 16_777_216.0;
-/// A correction of a body's position travels in integers of this many units (1/1024).
+/// A body's residual travels in integers of this many units (1/1024).
 pub const POS_QUANTUM: f64 = 1.0 / 1024.0;
 /// A receiver's position is within this many units of the server's (1/2048), on each axis
-/// (and half a [`FINE`] unit, the grid it is held on).
+/// (and half a [`FINE`] unit, the grid it is held on); its displacement over a frame,
+/// within twice that.
 pub const POS_BOUND: f64 = 1.0 / 2048.0;
-/// A correction of a body's displacement over a frame travels in integers of this many
-/// units (2^-14).
-pub const DISP_QUANTUM: f64 = 1.0 / 16384.0;
-/// A receiver's displacement over a frame is within this many units of the server's
-/// (2^-12; 0.015 units/s at 60 steps a second).
-pub const DISP_BOUND: f64 = 1.0 / 4096.0;
-/// A correction of the change of a body's displacement per frame travels in integers of
-/// this many units (2^-18).
-pub const ACC_QUANTUM: f64 = 1.0 / 262_144.0;
-/// [`POS_QUANTUM`], [`DISP_QUANTUM`] and [`ACC_QUANTUM`] in [`FINE`] units.
+/// [`POS_QUANTUM`] in [`FINE`] units.
 const POS_STEP: i64 = 1 << 14;
-/// [`POS_BOUND`] in [`FINE`] units.
-const POS_TOLERANCE: i64 = 1 << 13;
-const DISP_STEP: i64 = 1 << 10;
-/// [`DISP_BOUND`] in [`FINE`] units.
-const DISP_TOLERANCE: i64 = 1 << 12;
-const ACC_STEP: i64 = 1 << 6;
 /// Positions of particles travel as integers of this many units (1/1024).
 pub const PARTICLE_QUANTUM: f64 = 1.0 / 1024.0;
 /// A receiver's particle is within this many units of the server's (1/512), on each axis.
@@ -176,14 +155,8 @@ const POS: u8 = 0x02;
 const VEL: u8 = 0x04;
 const COLLIDED: u8 = 0x08;
 const REMOVED: u8 = 0x10;
-const ACC: u8 = 0x20;
 const SAME_SHAPE: u8 = 0x40;
 const SAME_GROUP: u8 = 0x80;
-/// In a record that is not NEW: the body holds still (`d` and `a` become 0).
-const HALT: u8 = 0x40;
-/// In a body record that is not NEW: every correction it carries is along y alone (its
-/// x is 0 and not written).
-const Y_ONLY: u8 = 0x80;
 /// A NEW particle record carries the axes it is frozen on.
 const FROZEN: u8 = 0x20;
 /// In a particle record that is not NEW: frozen on x, on y.
@@ -275,8 +248,6 @@ pub struct Body {
     pub p: [i64; 2],
     /// Displacement over the last frame, in [`FINE`] units.
     pub d: [i64; 2],
-    /// Change of the displacement per frame, in [`FINE`] units.
-    pub a: [i64; 2],
     /// Seconds a frame stands for (of the frame that last moved the body; 0 for a static).
     pub dt: f64,
     pub collided: bool,
@@ -296,15 +267,13 @@ impl Body {
         }
     }
 
-    /// One frame on, as every receiver moves a body without a record: `d += a; p += d`
-    /// (wrapping: a server keeps these near the body's true state, far from 64 bits).
-    fn predicted(&self) -> ([i64; 2], [i64; 2]) {
-        let d = [
-            self.d[0].wrapping_add(self.a[0]),
-            self.d[1].wrapping_add(self.a[1]),
-        ];
-        let p = [self.p[0].wrapping_add(d[0]), self.p[1].wrapping_add(d[1])];
-        (p, d)
+    /// One frame on, as every receiver predicts a body: `p + d` (wrapping: a server
+    /// keeps these near the body's true state, far from 64 bits).
+    fn predicted(&self) -> [i64; 2] {
+        [
+            self.p[0].wrapping_add(self.d[0]),
+            self.p[1].wrapping_add(self.d[1]),
+        ]
     }
 }
 

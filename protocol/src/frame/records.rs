@@ -94,20 +94,19 @@ pub(super) fn diff<T: Keyed, N>(
 }
 
 /// What one record does to the item of its key.
-pub(super) enum Change<T, P> {
+pub(super) enum Change<T> {
     /// A new item (or one sent whole again).
     New(T),
-    /// A change to the held item, checked against it.
-    Patch(P),
     /// The item is gone.
     Removed,
 }
 
-/// A section's records, read and checked, by kind; each list by increasing key.
+/// A section's records, read and checked, by kind, and the patches of the items they
+/// leave (a delta's motion); each list by increasing key.
 pub(super) struct Section<T, P> {
-    news: Vec<T>,
-    patches: Vec<(u32, P)>,
-    removed: Vec<u32>,
+    pub news: Vec<T>,
+    pub patches: Vec<(u32, P)>,
+    pub removed: Vec<u32>,
 }
 
 /// Reads a section against `held` (by increasing key) without changing it: for each
@@ -118,7 +117,7 @@ pub(super) struct Section<T, P> {
 pub(super) fn read<T: Keyed, P>(
     r: &mut Reader,
     held: &[T],
-    mut parse: impl FnMut(&mut Reader, u32, u8, Option<&T>) -> Result<Change<T, P>, DecodeError>,
+    mut parse: impl FnMut(&mut Reader, u32, u8, Option<&T>) -> Result<Change<T>, DecodeError>,
 ) -> Result<Section<T, P>, DecodeError> {
     // A record is at least a key gap and a flags byte.
     let n = r.count(2)?;
@@ -145,7 +144,6 @@ pub(super) fn read<T: Keyed, P>(
         let flags = r.u8()?;
         match parse(r, key, flags, existing)? {
             Change::New(item) => section.news.push(item),
-            Change::Patch(p) => section.patches.push((key, p)),
             Change::Removed => section.removed.push(key),
         }
     }
