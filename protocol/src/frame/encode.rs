@@ -327,6 +327,67 @@ struct Last {
     emitters: Vec<EmitterIn>,
 }
 
+/// What the bodies' section of one frame is written with.
+struct Tracking {
+    /// The previous NEW record.
+    prev: Previous,
+    /// The coder of a delta's motion and its model; none in a key frame.
+    motion: Option<(RangeEncoder, Model)>,
+    /// Seconds the frame stands for.
+    dt: f64,
+}
+
+impl Tracking {
+    /// Writes what receivers need of `now`, given what they hold of it (`held`, updated
+    /// in place): its residuals in a delta, its NEW record in a key frame. A body they
+    /// do not hold, or a different body under its key, is sent whole (a NEW record, its
+    /// displacement from its velocity) and returned.
+    fn track(
+        &mut self,
+        records: &mut Records,
+        held: Option<&mut Sent>,
+        now: &BodyIn,
+    ) -> Option<Sent> {
+        let truth = fine(now.pos);
+        let size = [now.size[0] as f32, now.size[1] as f32];
+        let same = held.filter(|old| {
+            let b = &old.body;
+            b.id == now.id && b.size == size && b.circle == now.circle && b.group == now.group
+        });
+        let Some(old) = same else {
+            let disp = fine(now.vel.map(|v| v * self.dt));
+            let body = body_of(now, disp, self.dt);
+            put_new_body(records.start(now.key), &mut self.prev, &body, COARSE);
+            return Some(Sent { body, truth });
+        };
+        let disp = [
+            truth[0].wrapping_sub(old.truth[0]),
+            truth[1].wrapping_sub(old.truth[1]),
+        ];
+        old.truth = truth;
+        let b = &mut old.body;
+        b.dt = self.dt;
+        let Some((coder, model)) = self.motion.as_mut() else {
+            // The body it already is, restated: no new id or group strings.
+            [b.p, b.d] = rounded(now, disp);
+            b.collided = now.collided;
+            put_new_body(records.start(now.key), &mut self.prev, b, COARSE);
+            return None;
+        };
+        let p = b.predicted();
+        let r = [0, 1].map(|i| steps(truth[i].wrapping_sub(p[i]), POS_STEP));
+        model.residuals(coder, b.d, POS_STEP, r);
+        model.collided(coder, b.collided, b.collided != now.collided);
+        for i in 0..2 {
+            let step = r[i].wrapping_mul(POS_STEP);
+            b.p[i] = p[i].wrapping_add(step);
+            b.d[i] = b.d[i].wrapping_add(step);
+        }
+        b.collided = now.collided;
+        None
+    }
+}
+
 /// Turns a world's states into frames, remembering what receivers were last told.
 #[derive(Clone, Debug)]
 pub struct FrameEncoder {
@@ -454,65 +515,43 @@ impl FrameEncoder {
     /// each body (its last position) is kept across key frames.
     fn encode_bodies(&mut self, out: &mut Vec<u8>, key: bool, dt: f64, bodies: &[BodyIn]) {
         let mut records = Records::with_capacity(if key { bodies.len() * 12 } else { 16 });
-        let mut prev = Previous::default();
+        let mut t = Tracking {
+            prev: Previous::default(),
+            motion: (!key).then(|| (RangeEncoder::new(), Model::new())),
+            dt,
+        };
         let mut sent = std::mem::take(&mut self.bodies);
         if key {
             // A key frame states what is; receivers drop what it does not name.
             sent.retain(|s| bodies.binary_search_by_key(&s.body.key, |b| b.key).is_ok());
         }
-        let mut motion = (!key).then(|| (RangeEncoder::new(), Model::new()));
-        self.bodies = diff(
-            sent,
-            bodies.iter(),
-            |b| b.key,
-            &mut records,
-            |records, old, now| {
-                let truth = fine(now.pos);
-                let size = [now.size[0] as f32, now.size[1] as f32];
-                let same = old.filter(|old| {
-                    let b = &old.body;
-                    b.id == now.id
-                        && b.size == size
-                        && b.circle == now.circle
-                        && b.group == now.group
-                });
-                let Some(mut old) = same else {
-                    // New, or a different body under a reused key: sent whole, its
-                    // displacement from its velocity.
-                    let disp = fine(now.vel.map(|v| v * dt));
-                    let body = body_of(now, disp, dt);
-                    put_new_body(records.start(now.key), &mut prev, &body, COARSE);
-                    return Sent { body, truth };
-                };
-                let disp = [
-                    truth[0].wrapping_sub(old.truth[0]),
-                    truth[1].wrapping_sub(old.truth[1]),
-                ];
-                old.truth = truth;
-                let b = &mut old.body;
-                b.dt = dt;
-                let Some((coder, model)) = motion.as_mut() else {
-                    // The body it already is, restated: no new id or group strings.
-                    [b.p, b.d] = rounded(now, disp);
-                    b.collided = now.collided;
-                    put_new_body(records.start(now.key), &mut prev, b, COARSE);
-                    return old;
-                };
-                let p = b.predicted();
-                let r = [0, 1].map(|i| steps(truth[i].wrapping_sub(p[i]), POS_STEP));
-                model.residuals(coder, b.d, POS_STEP, r);
-                model.collided(coder, b.collided, b.collided != now.collided);
-                for i in 0..2 {
-                    let step = r[i].wrapping_mul(POS_STEP);
-                    b.p[i] = p[i].wrapping_add(step);
-                    b.d[i] = b.d[i].wrapping_add(step);
+        let same_keys =
+            sent.len() == bodies.len() && sent.iter().zip(bodies).all(|(s, b)| s.body.key == b.key);
+        self.bodies = if same_keys {
+            // No body added or removed (most frames): what receivers hold is updated in
+            // place.
+            for (held, now) in sent.iter_mut().zip(bodies) {
+                if let Some(new) = t.track(&mut records, Some(held), now) {
+                    *held = new;
                 }
-                b.collided = now.collided;
-                old
-            },
-        );
+            }
+            sent
+        } else {
+            diff(
+                sent,
+                bodies.iter(),
+                |b| b.key,
+                &mut records,
+                |records, old, now| match old {
+                    Some(mut held) => t.track(records, Some(&mut held), now).unwrap_or(held),
+                    None => t
+                        .track(records, None, now)
+                        .expect("a new body is sent whole"),
+                },
+            )
+        };
         records.finish(out);
-        if let Some((coder, _)) = motion {
+        if let Some((coder, _)) = t.motion {
             let bytes = coder.finish();
             put_varint(out, bytes.len() as u64);
             out.extend_from_slice(&bytes);

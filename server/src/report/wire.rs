@@ -7,17 +7,23 @@
 //! they carry, and the bandwidth a viewer needs at 60 frames a second.
 
 use std::path::Path;
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use ricochet_engine::scene;
 use ricochet_engine::world::World;
-use ricochet_protocol::frame::{peek_header, FrameEncoder, HEADER_BYTES, KIND_KEY};
+use ricochet_protocol::frame::{FrameDecoder, FrameEncoder, HEADER_BYTES, KIND_KEY};
 use ricochet_protocol::world as wire;
 
 /// The bytes of a run's frames, frame by frame.
 #[derive(Clone, Debug)]
 pub struct WireStats {
     encoder: FrameEncoder,
+    /// A receiver of the frames, to time what decoding them costs.
+    decoder: FrameDecoder,
+    /// Seconds each frame took to encode (from the world, as `run` does), and to decode.
+    pub encode_s: Vec<f64>,
+    pub decode_s: Vec<f64>,
     pub statics_bytes: usize,
     pub frames: u64,
     pub bytes: u64,
@@ -33,6 +39,9 @@ impl WireStats {
     pub fn new(world: &World, keyframe_interval: u64) -> Self {
         let mut w = WireStats {
             encoder: FrameEncoder::new(keyframe_interval),
+            decoder: FrameDecoder::new(),
+            encode_s: Vec::new(),
+            decode_s: Vec::new(),
             statics_bytes: wire::statics_snapshot(world).len(),
             frames: 0,
             bytes: 0,
@@ -46,8 +55,12 @@ impl WireStats {
 
     /// Counts the frame of `world` after its last step.
     pub fn frame(&mut self, world: &World) {
+        let began = Instant::now();
         let bytes = wire::encode_frame(&mut self.encoder, world, 0.0, 0);
-        let header = peek_header(&bytes).expect("own frames read back");
+        self.encode_s.push(began.elapsed().as_secs_f64());
+        let began = Instant::now();
+        let header = self.decoder.apply(&bytes).expect("own frames read back");
+        self.decode_s.push(began.elapsed().as_secs_f64());
         self.frames += 1;
         self.bytes += bytes.len() as u64;
         if header.kind == KIND_KEY {
@@ -83,13 +96,24 @@ impl WireStats {
         per(self.bytes, self.body_frames + self.particle_frames)
     }
 
+    /// Mean and median microseconds a frame took to encode.
+    pub fn encode_us(&self) -> (f64, f64) {
+        mean_median_us(&self.encode_s)
+    }
+
+    /// Mean and median microseconds a frame took to decode.
+    pub fn decode_us(&self) -> (f64, f64) {
+        mean_median_us(&self.decode_s)
+    }
+
     /// One line for `simulate --wire-stats`.
     pub fn summary(&self) -> String {
         format!(
             "wire: {} frames, {:.1} bytes/frame on average ({:.1} in key frames, {:.1} in delta \
              frames; {} of header each); statics snapshot {} bytes once; {:.1} dynamic bodies \
              and {:.1} particles a frame on average; {:.3} bytes per body-or-particle a frame, \
-             headers and key frames included",
+             headers and key frames included; {:.1} us to encode a frame, {:.1} to decode it \
+             (means; medians {:.1} and {:.1})",
             self.frames,
             self.bytes_per_frame(),
             self.key_frame_bytes(),
@@ -99,8 +123,23 @@ impl WireStats {
             per(self.body_frames, self.frames),
             per(self.particle_frames, self.frames),
             self.bytes_per_thing(),
+            self.encode_us().0,
+            self.decode_us().0,
+            self.encode_us().1,
+            self.decode_us().1,
         )
     }
+}
+
+/// Mean and median of `seconds`, in microseconds.
+fn mean_median_us(seconds: &[f64]) -> (f64, f64) {
+    if seconds.is_empty() {
+        return (0.0, 0.0);
+    }
+    let mut sorted = seconds.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let mean = seconds.iter().sum::<f64>() / seconds.len() as f64;
+    (mean * 1e6, sorted[sorted.len() / 2] * 1e6)
 }
 
 fn per(num: u64, den: u64) -> f64 {
@@ -249,15 +288,19 @@ impl WireReport {
     pub fn to_markdown(&self) -> String {
         let mut out = format!(
             "Measured by `{}` ({} steps of each scene from its start, a key frame every {} \
-             frames, every byte of every frame counted, headers and key frames included):\n\n",
+             frames, every byte of every frame counted, headers and key frames included; the \
+             time to encode a frame from the world and to decode it, mean over every frame and \
+             median, on {}):\n\n",
             super::command_line(),
             self.steps,
-            self.keyframe_interval
+            self.keyframe_interval,
+            super::machine(),
         );
         out.push_str(
             "| scene | what moves | bodies and particles a frame | bytes a frame | key frame | \
-             delta frame | bytes per body or particle a frame | at 60 frames/s | goal |\n\
-             |---|---|---:|---:|---:|---:|---:|---:|---|\n",
+             delta frame | bytes per body or particle a frame | at 60 frames/s | encode, us \
+             (mean / median) | decode, us | goal |\n\
+             |---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
         );
         for r in &self.rows {
             let s = &r.stats;
@@ -269,8 +312,10 @@ impl WireReport {
                 ),
                 None => String::new(),
             };
+            let (encode, decode) = (s.encode_us(), s.decode_us());
             out.push_str(&format!(
-                "| {}{} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.3} | {} | {goal} |\n",
+                "| {}{} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.3} | {} | {:.0} / {:.0} | \
+                 {:.0} / {:.0} | {goal} |\n",
                 r.file,
                 r.set
                     .iter()
@@ -283,6 +328,10 @@ impl WireReport {
                 s.delta_frame_bytes(),
                 per,
                 rate(s.bytes_per_frame() * 60.0 * 8.0),
+                encode.0,
+                encode.1,
+                decode.0,
+                decode.1,
             ));
         }
         out
