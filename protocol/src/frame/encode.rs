@@ -394,20 +394,36 @@ pub struct FrameEncoder {
     bodies: Vec<Sent>,
     particles: Vec<ParticleSent>,
     keyframe_interval: u64,
-    since_key: u64,
+    /// Periodic key frames come at the frames (steps) that are `key_at` past a multiple
+    /// of `key_every`.
+    key_every: u64,
+    key_at: u64,
     force_key: bool,
     /// Header and emitters of the last frame encoded.
     last: Option<Last>,
 }
 
 impl FrameEncoder {
+    /// For a stream of one frame in `every` steps: its periodic key frames come at the
+    /// steps that are `phase` of its frames past a multiple of its interval (by default
+    /// at the multiples of the interval, counted in steps from the world's frame 0).
+    /// Streams encoded side by side with different phases never make their key frames,
+    /// the costliest frames to encode, in the same step.
+    pub fn with_key_schedule(mut self, every: u64, phase: u64) -> Self {
+        let every = every.max(1);
+        self.key_every = self.keyframe_interval.saturating_mul(every);
+        self.key_at = (phase % self.keyframe_interval) * every;
+        self
+    }
+
     /// A key frame every `keyframe_interval` frames (at least 1).
     pub fn new(keyframe_interval: u64) -> Self {
         FrameEncoder {
             bodies: Vec::new(),
             particles: Vec::new(),
             keyframe_interval: keyframe_interval.max(1),
-            since_key: 0,
+            key_every: keyframe_interval.max(1),
+            key_at: 0,
             force_key: true,
             last: None,
         }
@@ -478,13 +494,10 @@ impl FrameEncoder {
         let steps = (frame - prev).max(1);
         // A new dt changes what a displacement per frame means: receivers start afresh.
         let dt_changed = self.last.as_ref().is_some_and(|l| l.dt != dt);
-        let key = self.force_key || dt_changed || self.since_key + 1 >= self.keyframe_interval;
+        let key = self.force_key || dt_changed || frame % self.key_every == self.key_at;
         if key {
             self.force_key = false;
-            self.since_key = 0;
             self.particles.clear();
-        } else {
-            self.since_key += 1;
         }
         let mut out =
             Vec::with_capacity(HEADER_BYTES + 64 + bodies.len() * 8 + particles.id.len() * 6);
@@ -572,77 +585,119 @@ impl FrameEncoder {
         let n = p.id.len();
         let mut records = Records::with_capacity(n * 2);
         let mut prev = PreviousParticle::default();
-        let sent = std::mem::take(&mut self.particles);
-        self.particles = diff(
-            sent,
-            0..n,
-            |&i| p.id[i],
-            &mut records,
-            |records, old, i| {
-                let id = p.id[i];
-                let truth = [p.x[i], p.y[i]];
-                let Some(mut s) = old else {
-                    let color0 = p.color[i];
-                    let life0 = p.initial_life[i];
-                    let color1: [f32; 4] =
-                        std::array::from_fn(|c| color0[c] + p.color_delta[i][c] * life0);
-                    let particle = Particle {
-                        id,
-                        pos: truth.map(|v| dequantize(v, PARTICLE_QUANTUM)),
-                        vel: [p.vx[i], p.vy[i]].map(|v| dequantize(v, PARTICLE_VEL_QUANTUM)),
-                        acc: [p.ax[i], p.ay[i]],
-                        drag: p.drag[i],
-                        frozen: [false; 2],
-                        color0: color0.map(color_byte),
-                        color1: color1.map(color_byte),
-                        initial_life: life0,
-                        life: life0 - (life0 - p.life[i]).max(0.0).round(),
-                        size: p.size[i],
-                        size_delta: p.size_delta[i],
-                        record_frame: frame,
-                    };
-                    put_new_particle(records.start(id), &mut prev, &particle, false);
-                    return ParticleSent { p: particle, truth };
-                };
-                for _ in 0..steps {
-                    s.p.advance(dt);
+        // What receivers hold, merged with the particles now in place: a particle held
+        // moves down over the ones that expired before it (`w` trails `r`), the newborn
+        // (ids beyond every one held) go at the end. Copying every particle into a new
+        // list each frame cost more than all the rest of the encoding.
+        let mut sent = std::mem::take(&mut self.particles);
+        let (mut r, mut w) = (0, 0);
+        for i in 0..n {
+            let id = p.id[i];
+            while sent.get(r).is_some_and(|s| s.p.id < id) {
+                records.removed(sent[r].p.id);
+                r += 1;
+            }
+            if sent.get(r).is_some_and(|s| s.p.id == id) {
+                sent.swap(w, r);
+                track_particle(&mut records, &mut sent[w], p, i, dt, steps);
+                r += 1;
+            } else {
+                let new = new_particle(&mut records, &mut prev, p, i, frame);
+                if w < r {
+                    // The slot of one that expired.
+                    sent[w] = new;
+                } else {
+                    sent.insert(w, new);
+                    r += 1;
                 }
-                let moved = [0, 1].map(|k| (truth[k] as f64 - s.truth[k] as f64).abs());
-                s.truth = truth;
-                let err = [0, 1].map(|k| truth[k] as f64 - s.p.pos[k] as f64);
-                if err.iter().all(|e| e.abs() <= super::PARTICLE_BOUND) {
-                    return s;
-                }
-                let r = err.map(|e| quantize(e, PARTICLE_QUANTUM));
-                let held = moved.map(|m| m <= HELD);
-                // A frozen axis the particle now moves on needs its velocity back.
-                let thaw = (0..2).any(|k| s.p.frozen[k] && !held[k]);
-                let freeze: [bool; 2] =
-                    std::array::from_fn(|k| held[k] && (thaw || !s.p.frozen[k]));
-                let out = records.start(id);
-                out.push(
-                    POS | if thaw { VEL } else { 0 }
-                        | if freeze[0] { FREEZE_X } else { 0 }
-                        | if freeze[1] { FREEZE_Y } else { 0 },
-                );
-                put_svarint(out, r[0]);
-                put_svarint(out, r[1]);
-                for (pos, r) in s.p.pos.iter_mut().zip(r) {
-                    *pos = (*pos as f64 + r as f64 * PARTICLE_QUANTUM) as f32;
-                }
-                if thaw {
-                    for (vel, v) in s.p.vel.iter_mut().zip([p.vx[i], p.vy[i]]) {
-                        put_svarint(out, quantize(v as f64, PARTICLE_VEL_QUANTUM));
-                        *vel = dequantize(v, PARTICLE_VEL_QUANTUM);
-                    }
-                    s.p.frozen = [false; 2];
-                }
-                for (frozen, freeze) in s.p.frozen.iter_mut().zip(freeze) {
-                    *frozen |= freeze;
-                }
-                s
-            },
-        );
+            }
+            w += 1;
+        }
+        for s in &sent[r..] {
+            records.removed(s.p.id);
+        }
+        sent.truncate(w);
+        self.particles = sent;
         records.finish(out);
+    }
+}
+
+/// A particle receivers do not hold: its NEW record, and what they hold of it then.
+fn new_particle(
+    records: &mut Records,
+    prev: &mut PreviousParticle,
+    p: &ParticlesIn,
+    i: usize,
+    frame: u64,
+) -> ParticleSent {
+    let id = p.id[i];
+    let truth = [p.x[i], p.y[i]];
+    let color0 = p.color[i];
+    let life0 = p.initial_life[i];
+    let color1: [f32; 4] = std::array::from_fn(|c| color0[c] + p.color_delta[i][c] * life0);
+    let particle = Particle {
+        id,
+        pos: truth.map(|v| dequantize(v, PARTICLE_QUANTUM)),
+        vel: [p.vx[i], p.vy[i]].map(|v| dequantize(v, PARTICLE_VEL_QUANTUM)),
+        acc: [p.ax[i], p.ay[i]],
+        drag: p.drag[i],
+        frozen: [false; 2],
+        color0: color0.map(color_byte),
+        color1: color1.map(color_byte),
+        initial_life: life0,
+        life: life0 - (life0 - p.life[i]).max(0.0).round(),
+        size: p.size[i],
+        size_delta: p.size_delta[i],
+        record_frame: frame,
+    };
+    put_new_particle(records.start(id), prev, &particle, false);
+    ParticleSent { p: particle, truth }
+}
+
+/// A particle receivers hold (`s`, updated): moved on as they move it, and a record
+/// where that missed it by more than [`PARTICLE_BOUND`](super::PARTICLE_BOUND).
+fn track_particle(
+    records: &mut Records,
+    s: &mut ParticleSent,
+    p: &ParticlesIn,
+    i: usize,
+    dt: f32,
+    steps: u64,
+) {
+    let truth = [p.x[i], p.y[i]];
+    for _ in 0..steps {
+        s.p.advance(dt);
+    }
+    let moved = [0, 1].map(|k| (truth[k] as f64 - s.truth[k] as f64).abs());
+    s.truth = truth;
+    let err = [0, 1].map(|k| truth[k] as f64 - s.p.pos[k] as f64);
+    if err.iter().all(|e| e.abs() <= super::PARTICLE_BOUND) {
+        return;
+    }
+    let r = err.map(|e| quantize(e, PARTICLE_QUANTUM));
+    let held = moved.map(|m| m <= HELD);
+    // A frozen axis the particle now moves on needs its velocity back.
+    let thaw = (0..2).any(|k| s.p.frozen[k] && !held[k]);
+    let freeze: [bool; 2] = std::array::from_fn(|k| held[k] && (thaw || !s.p.frozen[k]));
+    let out = records.start(s.p.id);
+    out.push(
+        POS | if thaw { VEL } else { 0 }
+            | if freeze[0] { FREEZE_X } else { 0 }
+            | if freeze[1] { FREEZE_Y } else { 0 },
+    );
+    put_svarint(out, r[0]);
+    put_svarint(out, r[1]);
+    for (pos, r) in s.p.pos.iter_mut().zip(r) {
+        *pos = (*pos as f64 + r as f64 * PARTICLE_QUANTUM) as f32;
+    }
+    if thaw {
+        for (vel, v) in s.p.vel.iter_mut().zip([p.vx[i], p.vy[i]]) {
+            put_svarint(out, quantize(v as f64, PARTICLE_VEL_QUANTUM));
+            *vel = dequantize(v, PARTICLE_VEL_QUANTUM);
+        }
+        s.p.frozen = [false; 2];
+    }
+    for (frozen, freeze) in s.p.frozen.iter_mut().zip(freeze) {
+        *frozen |= freeze;
     }
 }

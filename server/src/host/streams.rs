@@ -77,11 +77,19 @@ impl Streams {
         Streams {
             streams: STREAMS
                 .iter()
-                .map(|&every| Stream {
+                .enumerate()
+                .map(|(i, &every)| Stream {
                     every,
                     // A tier's key frames (all of the world at once) are what a slow link
-                    // takes longest to carry: one in `every` times as many frames.
-                    encoder: FrameEncoder::new(keyframe_interval.saturating_mul(every)),
+                    // takes longest to carry: one in `every` times as many frames. The
+                    // streams' key frames fall in different steps (a key frame of a busy
+                    // world takes ten times a delta to encode): stream `i` of `n` at
+                    // `i / n` of the full stream's interval past its key frames.
+                    encoder: FrameEncoder::new(keyframe_interval.saturating_mul(every))
+                        .with_key_schedule(
+                            every,
+                            (i as u64 * keyframe_interval / STREAMS.len() as u64) / every,
+                        ),
                     watched: every == 1,
                     rate: Rate {
                         since: now,
@@ -155,5 +163,44 @@ impl Streams {
                 bytes_per_second: s.rate.peak(),
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ricochet_protocol::frame::{peek_header, KIND_KEY};
+
+    #[test]
+    fn no_two_streams_make_their_periodic_key_frames_in_the_same_step() {
+        let scene = "[[body]]\nid = \"box\"\nshape = \"rect\"\nsize = [1, 1]\npos = [0, 5]\n";
+        let mut world =
+            ricochet_engine::scene::parse(scene, std::path::Path::new("box.toml"), &[]).unwrap();
+        let mut streams = Streams::new(60);
+        for s in &mut streams.streams {
+            s.watched = true;
+        }
+        let mut keys = vec![0u64; STREAMS.len()];
+        // Two of the slowest tier's intervals (8 frames of 60 x 8 steps apart).
+        for _ in 0..2 * 60 * 8 * 8 + 1 {
+            let frames = streams.encode(&world, 0.0, 0);
+            let keyed: Vec<usize> = frames
+                .iter()
+                .filter(|(_, f)| peek_header(f).unwrap().kind == KIND_KEY)
+                .map(|(i, _)| *i)
+                .collect();
+            if world.frame() > 0 {
+                assert!(keyed.len() <= 1, "frame {}: {keyed:?}", world.frame());
+            }
+            for i in keyed {
+                keys[i] += 1;
+            }
+            world.step();
+        }
+        // Each stream keeps its interval: 60 of its frames.
+        for (i, &every) in STREAMS.iter().enumerate() {
+            let periodic = 2 * 60 * 8 * 8 / (60 * every * every);
+            assert_eq!(keys[i], 1 + periodic, "stream of one in {every}");
+        }
     }
 }
