@@ -10,7 +10,7 @@
 //!
 //! Nothing a peer does can stall the step: zenoh's threads only queue what arrives
 //! ([`inbox`]), replies and events leave from a thread of their own ([`outbox`]), frames
-//! and snapshots are published with `Drop` congestion control, at most
+//! and snapshots from another ([`frames_out`]), with `Drop` congestion control, at most
 //! [`MAX_COMMANDS_PER_FRAME`] commands, and commands for at most [`boundary_budget`] of
 //! wall time, and [`MAX_QUERIES_PER_PASS`] queries are served per pass, and the steps a `step` command asks for run in slices of at most [`STEP_SLICE`],
 //! with other clients served between slices.
@@ -19,6 +19,7 @@ pub mod answered;
 mod apply;
 pub mod budget;
 mod clock;
+pub mod frames_out;
 pub mod hosted;
 pub mod inbox;
 pub mod journal;
@@ -40,13 +41,13 @@ use ricochet_protocol::keys::WorldKeys;
 use ricochet_protocol::net::Network;
 use ricochet_protocol::world as wire;
 use zenoh::qos::{CongestionControl, Priority};
-use zenoh::sample::SourceInfo;
 use zenoh::Wait;
 
 use answered::Answered;
 use apply::{apply_incoming, Deferred};
 use budget::{BudgetLimits, Budgets};
 use clock::{Clock, Tick};
+use frames_out::FramesOut;
 use hosted::Hosted;
 use inbox::{Ask, Inbox, InboxLimits};
 use journal::Journal;
@@ -245,11 +246,10 @@ fn drops_event(frame: u64, before: [u64; 3], now: [u64; 3]) -> Option<Event> {
 }
 
 /// Publishes the statics snapshot if it is due ([`Hosted::snapshot_due`]).
-fn publish_statics(h: &mut Hosted, snapshots: &zenoh::pubsub::Publisher<'_>) {
+fn publish_statics(h: &mut Hosted, out: &FramesOut, snapshots: usize) {
     if let Some(snapshot) = h.snapshot_due(Instant::now()) {
-        let source = SourceInfo::new(snapshots.id(), h.world.frame() as u32);
-        if let Err(e) = snapshots.put(snapshot).source_info(source).wait() {
-            tracing::warn!("publishing the snapshot failed: {e}");
+        if !out.send(snapshots, h.world.frame() as u32, snapshot) {
+            tracing::warn!("the snapshot of frame {} was dropped", h.world.frame());
         }
     }
 }
@@ -331,12 +331,18 @@ pub fn run(opts: HostOptions) -> Result<()> {
                 .map_err(z)
         })
         .collect::<Result<Vec<_>>>()?;
-    let snapshots = session
-        .declare_publisher(&keys.snapshot)
-        .congestion_control(CongestionControl::Drop)
-        .priority(STEP_PRIORITY)
-        .wait()
-        .map_err(z)?;
+    let snapshots = frames.len();
+    let mut publishers = frames;
+    publishers.push(
+        session
+            .declare_publisher(keys.snapshot.clone())
+            .congestion_control(CongestionControl::Drop)
+            .priority(STEP_PRIORITY)
+            .wait()
+            .map_err(z)?,
+    );
+    // The frame streams' publishers, in the streams' order, then the snapshot's.
+    let out = FramesOut::start(publishers);
     let events = session
         .declare_publisher(keys.event.clone())
         .congestion_control(CongestionControl::Drop)
@@ -408,28 +414,28 @@ pub fn run(opts: HostOptions) -> Result<()> {
 
     // Every frame leaves with `Drop` congestion control: a slow subscriber loses frames
     // (and resyncs from the next key frame or the state query), it never holds the clock.
+    let mut last_drop_warning: Option<Instant> = None;
     let mut publish = |h: &mut Hosted| {
         h.fresh = false;
-        publish_statics(h, &snapshots);
-        // A stream is published only while someone subscribes to it: asked every 30
-        // frames (a stream watched again starts with a key frame).
-        if h.world.frame().is_multiple_of(30) {
-            let everys: Vec<u64> = h.streams.streams.iter().map(|s| s.every).collect();
-            for (every, publisher) in everys.into_iter().zip(&frames) {
-                let watched = publisher
-                    .matching_status()
-                    .wait()
-                    .map(|m| m.matching())
-                    .unwrap_or(true);
-                h.streams.set_watched(every, watched);
-            }
+        publish_statics(h, &out, snapshots);
+        // A stream is published only while someone subscribes to it (the frames thread
+        // asks zenoh twice a second); a stream watched again starts with a key frame.
+        let everys: Vec<u64> = h.streams.streams.iter().map(|s| s.every).collect();
+        for (i, every) in everys.into_iter().enumerate() {
+            h.streams.set_watched(every, out.watched(i));
         }
         for (i, bytes) in h.encode_frames() {
             // The source names this session, which holds the world's token: clients take
             // frames from it only.
-            let source = SourceInfo::new(frames[i].id(), h.world.frame() as u32);
-            if let Err(e) = frames[i].put(bytes).source_info(source).wait() {
-                tracing::warn!("publishing frame {} failed: {e}", h.world.frame());
+            if !out.send(i, h.world.frame() as u32, bytes)
+                && last_drop_warning.is_none_or(|at| at.elapsed() >= Duration::from_secs(1))
+            {
+                last_drop_warning = Some(Instant::now());
+                tracing::warn!(
+                    frame = h.world.frame(),
+                    dropped = out.dropped.load(Ordering::Relaxed),
+                    "frames wait longer to leave than the queue holds: dropped"
+                );
             }
         }
         if let Some(out) = dump.as_mut() {
@@ -467,7 +473,7 @@ pub fn run(opts: HostOptions) -> Result<()> {
     loop {
         inbox.set_frame(host.world.frame());
         // A change of the statics held back by their rate goes out once it is due.
-        publish_statics(&mut host, &snapshots);
+        publish_statics(&mut host, &out, snapshots);
 
         // Queries are answered from what the server has, a bounded number per pass.
         for _ in 0..MAX_QUERIES_PER_PASS {
