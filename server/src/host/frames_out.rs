@@ -10,9 +10,9 @@
 //!
 //! The queue is bounded by its bytes: a frame that would pass the bound is dropped and
 //! counted, and its receivers resync (the next key frame, or the state query), as when
-//! zenoh drops a frame for a slow peer. The thread also asks, twice a second, whether each
-//! publisher has subscribers (zenoh's matching status, a call the stepping thread no
-//! longer makes).
+//! zenoh drops a frame for a slow peer. Whether each publisher has subscribers comes from
+//! zenoh's matching listeners as it changes (and is asked twice a second besides): the
+//! stepping thread reads it every frame and no longer asks zenoh itself.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{channel, RecvTimeoutError, Sender};
@@ -66,6 +66,19 @@ impl FramesOut {
         let dropped = Arc::new(AtomicU64::new(0));
         let watched: Arc<Vec<AtomicBool>> =
             Arc::new(publishers.iter().map(|_| AtomicBool::new(false)).collect());
+        // zenoh says when a publisher gains its first subscriber or loses its last; the
+        // asking twice a second below is the fallback.
+        for (i, p) in publishers.iter().enumerate() {
+            let flags = watched.clone();
+            let listened = p
+                .matching_listener()
+                .callback(move |m| flags[i].store(m.matching(), Ordering::Relaxed))
+                .background()
+                .wait();
+            if let Err(e) = listened {
+                tracing::warn!("no matching listener on {}: {e}", p.key_expr());
+            }
+        }
         // Known before the first frame is made.
         ask(&publishers, &watched);
         let (taken, failed, seen) = (waiting.clone(), dropped.clone(), watched.clone());
