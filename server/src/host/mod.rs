@@ -87,15 +87,16 @@ pub const DROPS_EVERY: Duration = Duration::from_secs(1);
 /// reply to a query asked with `Block`) before zenoh closes that peer's link: zenoh's
 /// default is 5 s. Only the outbox thread ever waits so.
 pub const BLOCK_WAIT_BEFORE_CLOSE: Duration = Duration::from_millis(1000);
-/// The priority of what the step thread publishes (frames, snapshots). zenoh keeps one
-/// queue, behind one lock, per peer and priority: a reply the outbox thread is blocked
-/// on for a slow peer (up to [`BLOCK_WAIT_BEFORE_CLOSE`]) holds that lock, and a frame
-/// at the replies' priority would wait for it, and the step with it. Replies and events
-/// keep zenoh's default priority (`Data`), ahead of frames on a congested link.
+/// The priority of frames and snapshots. zenoh keeps one queue, behind one lock, per
+/// peer and priority: a reply the outbox thread is blocked on for a slow peer (up to
+/// [`BLOCK_WAIT_BEFORE_CLOSE`]) holds that lock, and a frame at the replies' priority
+/// would wait for it, and every frame queued behind it ([`frames_out`]). Replies and
+/// events keep zenoh's default priority (`Data`), ahead of frames on a congested link.
 pub const STEP_PRIORITY: Priority = Priority::DataLow;
 /// How long a frame split in fragments (a key frame of many particles) may wait for room
-/// in a slow peer's queue before zenoh drops it: zenoh's default is 50 ms, and the step
-/// thread publishes, so a slow peer would hold up every step by that much.
+/// in a slow peer's queue before zenoh drops it: zenoh's default is 50 ms, and one thread
+/// publishes every frame ([`frames_out`]), so a slow peer would hold up every frame to
+/// every peer by that much.
 pub const FRAGMENTS_WAIT_BEFORE_DROP: Duration = Duration::from_millis(1);
 
 /// How to host a world.
