@@ -421,9 +421,8 @@ pub fn run(opts: HostOptions) -> Result<()> {
         publish_statics(h, &out, snapshots);
         // A stream is published only while someone subscribes to it (the frames thread
         // asks zenoh twice a second); a stream watched again starts with a key frame.
-        let everys: Vec<u64> = h.streams.streams.iter().map(|s| s.every).collect();
-        for (i, every) in everys.into_iter().enumerate() {
-            h.streams.set_watched(every, out.watched(i));
+        for i in 0..h.streams.streams.len() {
+            h.streams.set_watched(i, out.watched(i));
         }
         for (i, bytes) in h.encode_frames() {
             // The source names this session, which holds the world's token: clients take

@@ -108,10 +108,10 @@ impl Streams {
         }
     }
 
-    /// Says whether the stream of `every` has subscribers; one that had none is brought
-    /// back with a key frame.
-    pub fn set_watched(&mut self, every: u64, watched: bool) {
-        if let Some(s) = self.streams.iter_mut().find(|s| s.every == every) {
+    /// Says whether stream `i` (in [`STREAMS`] order) has subscribers; one that had none
+    /// is brought back with a key frame.
+    pub fn set_watched(&mut self, i: usize, watched: bool) {
+        if let Some(s) = self.streams.get_mut(i) {
             if watched && !s.watched {
                 s.encoder.force_key_frame();
             }
