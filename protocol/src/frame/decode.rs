@@ -34,6 +34,9 @@ pub struct FrameDecoder {
     pub dropped_key_frames: u64,
     /// The state before the last key frame applied in sync, until a delta confirms it.
     before: Option<Box<Held>>,
+    /// The particles' list before the last frame, emptied: the next frame's particles are
+    /// read into it, so a frame allocates nothing for them.
+    spare_particles: Vec<Particle>,
 }
 
 /// The dynamic state a key frame replaces, kept until the next delta shows which of the
@@ -206,13 +209,11 @@ impl FrameDecoder {
             header.kind,
             frame_dt,
         )?;
-        let particles = read_particles(
+        let mut particles = std::mem::take(&mut self.spare_particles);
+        read_particles(
             &mut r,
-            if delta {
-                self.particles.clone()
-            } else {
-                Vec::new()
-            },
+            if delta { &self.particles } else { &[] },
+            &mut particles,
             header.kind,
             header.frame,
             header.dt as f32,
@@ -246,7 +247,8 @@ impl FrameDecoder {
         // In a delta every body held has a record or its motion; in a key frame every
         // body is new.
         records::fold(&mut self.bodies, bodies, patch_body, |_| {});
-        self.particles = particles;
+        self.spare_particles = std::mem::replace(&mut self.particles, particles);
+        self.spare_particles.clear();
         self.emitters = emitters;
         self.frame = header.frame;
         self.time = header.time;
@@ -513,14 +515,16 @@ fn read_new_particle(
     })
 }
 
+/// Reads a frame's particles against `held` into `out` (emptied first).
 fn read_particles(
     r: &mut Reader,
-    held: Vec<Particle>,
+    held: &[Particle],
+    out: &mut Vec<Particle>,
     kind: u8,
     frame: u64,
     dt: f32,
     steps: u64,
-) -> Result<Vec<Particle>, DecodeError> {
+) -> Result<(), DecodeError> {
     let advance = |p: &mut Particle| {
         for _ in 0..steps {
             p.advance(dt);
@@ -531,6 +535,7 @@ fn read_particles(
     records::read_into_copy(
         r,
         held,
+        out,
         |r, id, flags, existing| {
             if flags & REMOVED != 0 {
                 return Ok(None);

@@ -200,7 +200,15 @@ fn motion_of(p: &Particle) -> [u32; 3] {
     [p.acc[0].to_bits(), p.acc[1].to_bits(), p.drag.to_bits()]
 }
 
-fn put_new_particle(out: &mut Vec<u8>, prev: &mut PreviousParticle, p: &Particle, exact: bool) {
+/// How a NEW particle record gives position and velocity: their f32 bits (a resync), or
+/// in [`PARTICLE_QUANTUM`] and [`PARTICLE_VEL_QUANTUM`] steps (the particle's `pos` and
+/// `vel` are these steps dequantized).
+enum Place {
+    Exact,
+    Steps { pos: [i64; 2], vel: [i64; 2] },
+}
+
+fn put_new_particle(out: &mut Vec<u8>, prev: &mut PreviousParticle, p: &Particle, place: Place) {
     let motion = motion_of(p);
     let look = (p.color0, p.size_delta.to_bits());
     let frozen = p.frozen[0] as u8 | (p.frozen[1] as u8) << 1;
@@ -214,17 +222,19 @@ fn put_new_particle(out: &mut Vec<u8>, prev: &mut PreviousParticle, p: &Particle
     if frozen != 0 {
         out.push(frozen);
     }
-    if exact {
-        for v in p.pos.iter().chain(&p.vel) {
-            out.extend_from_slice(&v.to_bits().to_le_bytes());
+    match place {
+        Place::Exact => {
+            for v in p.pos.iter().chain(&p.vel) {
+                out.extend_from_slice(&v.to_bits().to_le_bytes());
+            }
         }
-    } else {
-        let q = p.pos.map(|v| quantize(v as f64, PARTICLE_QUANTUM));
-        put_svarint(out, q[0].wrapping_sub(prev.q[0]));
-        put_svarint(out, q[1].wrapping_sub(prev.q[1]));
-        prev.q = q;
-        for v in p.vel {
-            put_svarint(out, quantize(v as f64, PARTICLE_VEL_QUANTUM));
+        Place::Steps { pos, vel } => {
+            put_svarint(out, pos[0].wrapping_sub(prev.q[0]));
+            put_svarint(out, pos[1].wrapping_sub(prev.q[1]));
+            prev.q = pos;
+            for v in vel {
+                put_svarint(out, v);
+            }
         }
     }
     if !same_motion {
@@ -453,7 +463,7 @@ impl FrameEncoder {
             &mut out,
             &self.particles,
             |s| s.p.id,
-            |out, s| put_new_particle(out, &mut prev, &s.p.as_of(last.at.frame), true),
+            |out, s| put_new_particle(out, &mut prev, &s.p.as_of(last.at.frame), Place::Exact),
         );
         Some(out)
     }
@@ -635,10 +645,13 @@ fn new_particle(
     let color0 = p.color[i];
     let life0 = p.initial_life[i];
     let color1: [f32; 4] = std::array::from_fn(|c| color0[c] + p.color_delta[i][c] * life0);
+    // Quantized once: the record gives these steps, and receivers hold them dequantized.
+    let pos = truth.map(|v| quantize(v as f64, PARTICLE_QUANTUM));
+    let vel = [p.vx[i], p.vy[i]].map(|v| quantize(v as f64, PARTICLE_VEL_QUANTUM));
     let particle = Particle {
         id,
-        pos: truth.map(|v| dequantize(v, PARTICLE_QUANTUM)),
-        vel: [p.vx[i], p.vy[i]].map(|v| dequantize(v, PARTICLE_VEL_QUANTUM)),
+        pos: pos.map(|q| (q as f64 * PARTICLE_QUANTUM) as f32),
+        vel: vel.map(|q| (q as f64 * PARTICLE_VEL_QUANTUM) as f32),
         acc: [p.ax[i], p.ay[i]],
         drag: p.drag[i],
         frozen: [false; 2],
@@ -650,7 +663,12 @@ fn new_particle(
         size_delta: p.size_delta[i],
         record_frame: frame,
     };
-    put_new_particle(records.start(id), prev, &particle, false);
+    put_new_particle(
+        records.start(id),
+        prev,
+        &particle,
+        Place::Steps { pos, vel },
+    );
     ParticleSent { p: particle, truth }
 }
 

@@ -278,7 +278,7 @@ impl Body {
 }
 
 /// A particle as a receiver knows it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Particle {
     pub id: u32,
     pub pos: [f32; 2],
@@ -344,7 +344,7 @@ impl Particle {
             life: self.life - elapsed as f32,
             size: self.size_at(frame),
             record_frame: frame,
-            ..self.clone()
+            ..*self
         }
     }
 }

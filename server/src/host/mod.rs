@@ -93,11 +93,13 @@ pub const BLOCK_WAIT_BEFORE_CLOSE: Duration = Duration::from_millis(1000);
 /// would wait for it, and every frame queued behind it ([`frames_out`]). Replies and
 /// events keep zenoh's default priority (`Data`), ahead of frames on a congested link.
 pub const STEP_PRIORITY: Priority = Priority::DataLow;
-/// How long a frame split in fragments (a key frame of many particles) may wait for room
-/// in a slow peer's queue before zenoh drops it: zenoh's default is 50 ms, and one thread
-/// publishes every frame ([`frames_out`]), so a slow peer would hold up every frame to
-/// every peer by that much.
-pub const FRAGMENTS_WAIT_BEFORE_DROP: Duration = Duration::from_millis(1);
+/// How long a frame split in fragments (a key frame of many particles) may wait in all for
+/// room in a peer's queue before zenoh drops it (zenoh's default is 50 ms). Frames leave
+/// from a thread of their own ([`frames_out`]), so the wait holds up no step, only the
+/// frames queued behind it, to every peer: a slow peer delays the others by at most this
+/// much a key frame. 20 ms carries the fire's key frames (2 MB) to viewers on loopback
+/// and on fast links, where a wait of 1 ms lost one in four (docs/network.md, "Fan-out").
+pub const FRAGMENTS_WAIT_BEFORE_DROP: Duration = Duration::from_millis(20);
 
 /// How to host a world.
 #[derive(Clone, Debug)]
@@ -180,13 +182,14 @@ impl HostOptions {
 }
 
 /// The server's zenoh configuration: the network's, with the receive size bounded to what
-/// a command needs and a blocked send bounded in time (unless a configuration file was
-/// given: then its values hold, and `assets/zenoh/server.json5` sets both).
+/// a command needs, a blocked send bounded in time and the frames' queues
+/// ([`frame_queues`]), unless a configuration file was given: then its values hold, and
+/// `assets/zenoh/server.json5` sets them all.
 pub fn server_config(opts: &HostOptions) -> Result<zenoh::Config> {
     let mut config = opts.network.config()?;
     if opts.network.config.is_none() {
         let max_message = (opts.limits.command_bytes as usize).saturating_add(64 << 10);
-        for (key, value) in [
+        let own = [
             (
                 "transport/link/rx/max_message_size",
                 max_message.to_string(),
@@ -195,24 +198,39 @@ pub fn server_config(opts: &HostOptions) -> Result<zenoh::Config> {
                 "transport/link/tx/queue/congestion_control/block/wait_before_close",
                 BLOCK_WAIT_BEFORE_CLOSE.as_micros().to_string(),
             ),
-            (
-                "transport/link/tx/queue/congestion_control/drop/max_wait_before_drop_fragments",
-                FRAGMENTS_WAIT_BEFORE_DROP.as_micros().to_string(),
-            ),
-            // Room for a key frame of many particles to a slow peer (16 batches of 64 KiB,
-            // zenoh's most; its default is 2), taken only when needed.
-            ("transport/link/tx/queue/size/data_low", "16".to_string()),
-            (
-                "transport/link/tx/queue/allocation/mode",
-                "\"lazy\"".to_string(),
-            ),
-        ] {
-            config
-                .insert_json5(key, &value)
-                .map_err(|e| anyhow!("zenoh configuration {key} = {value}: {e}"))?;
-        }
+        ];
+        set(&mut config, own.into_iter().chain(frame_queues()))?;
     }
     Ok(config)
+}
+
+/// How the links that carry frames queue them, for the server and for a router between it
+/// and viewers: room for a key frame of many particles (16 batches of 64 KiB, zenoh's
+/// most; its default is 2), allocated only when needed, and the fragments' wait.
+fn frame_queues() -> [(&'static str, String); 3] {
+    [
+        (
+            "transport/link/tx/queue/congestion_control/drop/max_wait_before_drop_fragments",
+            FRAGMENTS_WAIT_BEFORE_DROP.as_micros().to_string(),
+        ),
+        ("transport/link/tx/queue/size/data_low", "16".to_string()),
+        (
+            "transport/link/tx/queue/allocation/mode",
+            "\"lazy\"".to_string(),
+        ),
+    ]
+}
+
+fn set(
+    config: &mut zenoh::Config,
+    values: impl IntoIterator<Item = (&'static str, String)>,
+) -> Result<()> {
+    for (key, value) in values {
+        config
+            .insert_json5(key, &value)
+            .map_err(|e| anyhow!("zenoh configuration {key} = {value}: {e}"))?;
+    }
+    Ok(())
 }
 
 /// The server's counts now.
@@ -730,9 +748,21 @@ fn give_back_memory() {
     }
 }
 
-/// Runs a bare zenoh router: where servers and clients on several hosts meet.
+/// Runs a zenoh router: where servers and clients on several hosts meet. Without a
+/// configuration file its links queue frames as the server's do ([`frame_queues`]).
 pub fn run_router(network: &Network) -> Result<()> {
-    let _session = network.open()?;
+    let mut config = network.config()?;
+    if network.config.is_none() {
+        // Its links carry frames to viewers as the server's do.
+        set(&mut config, frame_queues())?;
+    }
+    let _session = zenoh::open(config).wait().map_err(|e| {
+        anyhow!(
+            "cannot open the router's zenoh session (listen {:?}, connect {:?}): {e}",
+            network.listen,
+            network.connect
+        )
+    })?;
     tracing::info!(listen = ?network.listen, connect = ?network.connect, "router up");
     loop {
         std::thread::sleep(Duration::from_secs(3600));
