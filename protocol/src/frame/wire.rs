@@ -30,6 +30,7 @@ impl<'a> Reader<'a> {
     pub fn new(bytes: &'a [u8]) -> Self {
         Reader { bytes, at: 0 }
     }
+    #[inline]
     pub fn take(&mut self, n: usize) -> Result<&'a [u8], DecodeError> {
         let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len());
         let end =
@@ -38,16 +39,20 @@ impl<'a> Reader<'a> {
         self.at = end;
         Ok(s)
     }
+    #[inline]
     pub fn u8(&mut self) -> Result<u8, DecodeError> {
         Ok(self.take(1)?[0])
     }
+    #[inline]
     pub fn bytes4(&mut self) -> Result<[u8; 4], DecodeError> {
         let b = self.take(4)?;
         Ok([b[0], b[1], b[2], b[3]])
     }
+    #[inline]
     pub fn u32(&mut self) -> Result<u32, DecodeError> {
         Ok(u32::from_le_bytes(self.bytes4()?))
     }
+    #[inline]
     pub fn f32(&mut self) -> Result<f32, DecodeError> {
         Ok(f32::from_bits(self.u32()?))
     }
@@ -57,17 +62,33 @@ impl<'a> Reader<'a> {
         a.copy_from_slice(b);
         Ok(u64::from_le_bytes(a))
     }
+    /// A LEB128 varint of at most 10 bytes (the bits past 64 dropped). Inlined, and its
+    /// bytes read from the slice without a check each: a key frame of many particles is
+    /// mostly varints.
+    #[inline]
     pub fn varint(&mut self) -> Result<u64, DecodeError> {
         let mut v = 0u64;
-        for shift in (0..64).step_by(7) {
-            let b = self.u8()?;
-            v |= ((b & 0x7f) as u64) << shift;
+        for (i, &b) in self.bytes[self.at..].iter().take(10).enumerate() {
+            v |= ((b & 0x7f) as u64) << (7 * i);
             if b & 0x80 == 0 {
+                self.at += i + 1;
                 return Ok(v);
             }
         }
-        Err(DecodeError::Malformed("varint longer than 64 bits".into()))
+        Err(self.bad_varint())
     }
+
+    /// Why the varint at `at` cannot be read: the payload ends in it, or it runs past 10
+    /// bytes.
+    #[cold]
+    fn bad_varint(&self) -> DecodeError {
+        if self.bytes.len() - self.at < 10 {
+            DecodeError::Malformed(format!("cut short at byte {}", self.bytes.len()))
+        } else {
+            DecodeError::Malformed("varint longer than 64 bits".into())
+        }
+    }
+    #[inline]
     pub fn svarint(&mut self) -> Result<i64, DecodeError> {
         let v = self.varint()?;
         Ok(((v >> 1) as i64) ^ -((v & 1) as i64))
