@@ -237,8 +237,7 @@ pub(super) fn read_into_copy<T: Keyed + Copy>(
             .checked_add(gap)
             .ok_or_else(|| DecodeError::Malformed("key overflow".into()))?;
         // The items before this record's key, which no record names.
-        while let Some(&item) = held.get(at).filter(|t| t.key() < key) {
-            let mut item = item;
+        while let Some(mut item) = held.get(at).filter(|t| t.key() < key).copied() {
             rest(&mut item);
             out.push(item);
             at += 1;
