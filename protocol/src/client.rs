@@ -618,7 +618,7 @@ fn claimed_twice(world: &str, claimed: &[String]) -> String {
     let named: Vec<String> = claimed
         .iter()
         .take(3)
-        .map(|zid| ricochet_engine::world::short(zid, 40))
+        .map(|zid| crate::text::short(zid, 40))
         .collect();
     let more = match claimed.len().saturating_sub(named.len()) {
         0 => String::new(),

@@ -6,10 +6,11 @@
 //! server's clock. [`Command::parse`] tells the two apart and names what is wrong with a
 //! malformed one.
 
-use ricochet_engine::world::short;
 use serde::{Deserialize, Serialize};
 
-pub use ricochet_engine::action::{Action, Direction, MinionShape, Point};
+use crate::text::short;
+
+pub use crate::action::{Action, Direction, MinionShape, Point};
 
 /// Controls of the server's clock and world, besides the world actions.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames)]
@@ -132,6 +133,12 @@ impl Command {
         (id, Self::parse_value(value))
     }
 
+    /// A command from a JSON value already read (the CLI's `NAME ARG=VALUE` form), checked
+    /// as [`Command::parse`] checks one; errors are cut to [`MAX_ERROR_BYTES`].
+    pub fn from_value(value: serde_json::Value) -> Result<Command, String> {
+        Self::parse_value(value).map_err(|e| short(&e, MAX_ERROR_BYTES))
+    }
+
     fn parse_value(value: serde_json::Value) -> Result<Command, String> {
         let name = value
             .get("do")
@@ -168,6 +175,15 @@ impl Command {
         let known = serde_json::to_value(&command).map_err(|e| e.to_string())?;
         if let Some(field) = given.iter().find(|k| known.get(k.as_str()).is_none()) {
             return Err(format!("`{name}`: unknown field `{}`", short(field, 64)));
+        }
+        if let Command::World(Action::Set { name: setting, .. }) = &command {
+            if !crate::action::SETTING_NAMES.contains(&setting.as_str()) {
+                return Err(format!(
+                    "`set`: unknown setting `{}` (known: {})",
+                    short(setting, 64),
+                    crate::action::SETTING_NAMES.join(", ")
+                ));
+            }
         }
         for (field, text) in command.names() {
             if text.len() > MAX_NAME_BYTES {
@@ -360,55 +376,6 @@ pub fn parse_input_log(text: &str) -> Result<Vec<TimedAction>, String> {
     Ok(out)
 }
 
-/// An input log played into a world as it steps: before each step, the actions due (those
-/// of frames up to the world's), in log order. `simulate --inputs`, the trade-off runs and
-/// the accuracy measure all step this way, so the same log means the same frames.
-pub struct Replay<'a> {
-    next: std::iter::Peekable<std::slice::Iter<'a, TimedAction>>,
-}
-
-/// What one step of a [`Replay`] did.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Replayed {
-    /// Actions that were due before the step (applied or refused).
-    pub due: usize,
-    /// Of them, those the world refused.
-    pub refused: usize,
-    /// The time of the step alone, the actions' not included.
-    pub step_time: std::time::Duration,
-}
-
-impl<'a> Replay<'a> {
-    pub fn new(log: &'a [TimedAction]) -> Replay<'a> {
-        Replay {
-            next: log.iter().peekable(),
-        }
-    }
-
-    /// Applies the actions due to `world`, handing each with its outcome to `seen`, then
-    /// steps it once.
-    pub fn step(
-        &mut self,
-        world: &mut ricochet_engine::world::World,
-        mut seen: impl FnMut(
-            &TimedAction,
-            &Result<ricochet_engine::action::ActionOutcome, ricochet_engine::action::ActionError>,
-        ),
-    ) -> Replayed {
-        let mut done = Replayed::default();
-        while let Some(input) = self.next.next_if(|a| a.frame <= world.frame()) {
-            let outcome = world.apply(&input.action);
-            done.due += 1;
-            done.refused += usize::from(outcome.is_err());
-            seen(input, &outcome);
-        }
-        let t = std::time::Instant::now();
-        world.step();
-        done.step_time = t.elapsed();
-        done
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -448,7 +415,7 @@ mod tests {
         );
         let a: Action =
             serde_json::from_str(r#"{"do":"set","name":"gravity","value":[0,-10]}"#).unwrap();
-        assert!(matches!(a, Action::Set(_)));
+        assert!(matches!(a, Action::Set { .. }));
         let a: Action =
             serde_json::from_str(r#"{"do":"spawn_particles","preset":"fire","at":[1,2]}"#).unwrap();
         assert_eq!(
@@ -506,33 +473,6 @@ mod tests {
     }
 
     #[test]
-    fn a_replay_applies_what_is_due_before_each_step() {
-        let mut world = ricochet_engine::scene::parse(
-            include_str!("../../assets/scenes/particles.toml"),
-            std::path::Path::new("particles.toml"),
-            &[],
-        )
-        .unwrap();
-        let log = parse_input_log(
-            r#"{"frame":0,"action":{"do":"spawn_particles","preset":"fire","at":[50,50],"count":3}}
-{"frame":2,"action":{"do":"spawn_particles","preset":"nope","at":[50,50]}}
-{"frame":2,"action":{"do":"deselect"}}"#,
-        )
-        .unwrap();
-        let mut replay = Replay::new(&log);
-        let mut seen = Vec::new();
-        let mut steps = Vec::new();
-        for _ in 0..4 {
-            let frame = world.frame();
-            let done = replay.step(&mut world, |a, r| seen.push((frame, a.frame, r.is_ok())));
-            steps.push((done.due, done.refused));
-        }
-        assert_eq!(steps, [(1, 0), (0, 0), (2, 1), (0, 0)]);
-        assert_eq!(seen, [(0, 0, true), (2, 2, false), (2, 2, true)]);
-        assert_eq!(world.frame(), 4);
-    }
-
-    #[test]
     fn malformed_commands_are_refused_with_the_reason() {
         for (text, needle) in [
             ("not json", "not JSON"),
@@ -568,21 +508,6 @@ mod tests {
         ] {
             let e = Command::parse(text.as_bytes()).unwrap_err();
             assert!(e.len() <= MAX_ERROR_BYTES + 4, "{} bytes: {e:.80}", e.len());
-        }
-    }
-
-    #[test]
-    fn the_network_page_lists_every_settable_name() {
-        let page = include_str!("../../docs/network.md");
-        let row = page
-            .lines()
-            .find(|l| l.starts_with("| `set` |"))
-            .expect("docs/network.md has a row for `set`");
-        for name in ricochet_engine::dynamics::Setting::NAMES {
-            assert!(
-                row.contains(name),
-                "docs/network.md's `set` row misses {name}"
-            );
         }
     }
 }

@@ -1,22 +1,25 @@
-//! Ricochet's wire protocol and data formats: bytes and text flow in and out, engine
-//! values on the other side. No network here unless the `client` feature is on.
+//! Ricochet's wire protocol and data formats: bytes and text flow in and out, the wire's
+//! own types on the other side. No physics here (the server turns engine worlds into these
+//! types, `ricochet_server::wire`), and no network unless the `client` feature is on.
 //!
 //! - [`keys`]: the key expressions of a world;
+//! - [`action`]: world actions as they travel;
 //! - [`command`]: commands in JSON, replies and events;
 //! - [`frame`]: the binary frame and snapshot layout (versioned), encoder and decoder;
 //! - [`dump`]: the JSON Lines frames of headless runs;
-//! - [`world`]: an engine world as frames, snapshots and dump records.
+//! - [`text`]: what of a peer's text a message may show.
 //!
 //! With the `client` feature:
 //! - [`net`]: the network flags, zenoh session and tracing set-up every binary shares;
 //! - [`client`]: a typed zenoh client for tools, viewers and tests (and the `ricochet`
 //!   command-line client, `src/bin/ricochet.rs`).
 
+pub mod action;
 pub mod command;
 pub mod dump;
 pub mod frame;
 pub mod keys;
-pub mod world;
+pub mod text;
 
 #[cfg(feature = "client")]
 pub mod client;

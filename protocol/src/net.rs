@@ -347,7 +347,7 @@ pub fn parse_bits_per_second(text: &str) -> Result<f64, String> {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v * scale),
         _ => Err(format!(
             "`{}` is not a rate: give bits a second, as 5000000, 5M, 5Mbit or 500kbit",
-            ricochet_engine::world::short(text, 40)
+            crate::text::short(text, 40)
         )),
     }
 }

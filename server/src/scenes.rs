@@ -1,6 +1,6 @@
 //! The server's scenes directory: what a `load` command from the network may read. A
 //! name flows in; a path inside the directory, or a refusal that names the scene as asked
-//! and nothing else, flows out.
+//! and nothing else, flows out. Also the input logs of headless runs (`--inputs`).
 
 use std::path::{Path, PathBuf};
 
@@ -47,4 +47,14 @@ pub fn read_scene(path: &Path, shown: &str) -> Result<String, String> {
         .and_then(|f| f.take(MAX_SCENE_FILE_BYTES).read_to_string(&mut text))
         .map_err(|_| format!("scene `{shown}` cannot be read as text"))?;
     Ok(text)
+}
+
+/// Reads an input log (`simulate --inputs`, the lab's `tradeoff --inputs`), its errors
+/// naming the file and line.
+pub fn read_inputs(path: &Path) -> anyhow::Result<Vec<ricochet_protocol::command::TimedAction>> {
+    use anyhow::Context;
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read inputs {}", path.display()))?;
+    ricochet_protocol::command::parse_input_log(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
 }

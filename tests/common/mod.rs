@@ -31,8 +31,14 @@ pub fn bin(name: &str) -> PathBuf {
     p
 }
 
+/// The repository's root: the tests of the root package and of the lab share these
+/// helpers, so it is found from the package, not assumed to be it.
 pub fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .find(|dir| dir.join("assets/scenes").is_dir())
+        .expect("the repository's assets/scenes")
+        .to_path_buf()
 }
 
 pub fn scene(name: &str) -> String {
@@ -201,39 +207,6 @@ pub fn answer_every_query(
         .wait()
         .expect("declare a queryable")
 }
-
-/// Runs `ricochet-server ARGS --out PAGE` on a page whose `name` markers hold old text,
-/// checks the report replaced only that text with its table (the command named first),
-/// and returns the page.
-pub fn report_page(name: &str, args: &[&str]) -> String {
-    let dir = temp_dir();
-    let page = dir.path().join("page.md");
-    std::fs::write(
-        &page,
-        format!("before\n<!-- {name}:begin -->\nold\n<!-- {name}:end -->\nafter\n"),
-    )
-    .unwrap();
-    let out = Process::new(bin("ricochet-server"))
-        .args(args)
-        .arg("--out")
-        .arg(&page)
-        .output()
-        .unwrap();
-    ok(&out);
-    let text = std::fs::read_to_string(&page).unwrap();
-    assert!(
-        text.starts_with(&format!(
-            "before\n<!-- {name}:begin -->\nMeasured by `ricochet-server {name}"
-        )),
-        "{text}"
-    );
-    assert!(
-        text.ends_with(&format!("<!-- {name}:end -->\nafter\n")) && !text.contains("old"),
-        "{text}"
-    );
-    text
-}
-
 /// Runs a command (`ip`, `tc`, `nft`: the network tests' set-up); its error says which
 /// and why.
 pub fn sh(args: &[&str]) -> Result<(), String> {

@@ -18,21 +18,24 @@ pub struct Between {
 }
 
 impl Between {
-    /// The steps from the frame last drawn to `to`, which just arrived; `None` when there
-    /// is nothing to interpolate (no frame before, a gap of more than a stream's frame, a
-    /// new run of the world).
-    pub fn new(from: Option<FrameDecoder>, to: &FrameDecoder, now: Instant) -> Option<Between> {
-        let from = from?;
-        let steps = to.frame.checked_sub(from.frame)?;
-        if !(2..=MAX_STEPS_A_FRAME).contains(&steps) || to.dt <= 0.0 {
-            return None;
-        }
-        Some(Between {
+    /// Whether the steps from `from` to `to` are to be interpolated: two to
+    /// [`MAX_STEPS_A_FRAME`] steps apart in one run of the world (not a gap, not a restart).
+    pub fn spans(from: &FrameDecoder, to: &FrameDecoder) -> bool {
+        to.frame
+            .checked_sub(from.frame)
+            .is_some_and(|steps| (2..=MAX_STEPS_A_FRAME).contains(&steps))
+            && to.dt > 0.0
+    }
+
+    /// The steps from the frame last drawn, `from`, to `to`, which just arrived (two
+    /// frames that [`Between::spans`]).
+    pub fn new(from: FrameDecoder, to: FrameDecoder, now: Instant) -> Between {
+        Between {
             drawn: from.frame,
             from,
-            to: to.clone(),
+            to,
             arrived: now,
-        })
+        }
     }
 
     /// The frame the next stream frame is interpolated from: the newest of the two.
@@ -151,7 +154,8 @@ mod tests {
         let from = dec.clone();
         dec.apply(&frame(&mut enc, 8, 8.0)).unwrap();
         let t0 = Instant::now();
-        let between = Between::new(Some(from), &dec, t0).expect("eight steps apart");
+        assert!(Between::spans(&from, &dec), "eight steps apart");
+        let between = Between::new(from, dec.clone(), t0);
         (dec, between, t0)
     }
 
@@ -180,8 +184,8 @@ mod tests {
         // Frames too far apart (a gap), or back, are not interpolated.
         let mut far = dec.clone();
         far.frame = 100;
-        assert!(Between::new(Some(dec.clone()), &far, t0).is_none());
-        assert!(Between::new(Some(far), &dec, t0).is_none());
+        assert!(!Between::spans(&dec, &far));
+        assert!(!Between::spans(&far, &dec));
     }
 
     /// Looked at late, a live view draws the latest step due and a recording the next one

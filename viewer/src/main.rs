@@ -436,11 +436,15 @@ fn run(opts: Opts) -> Result<()> {
                 }
             }
             let before = between.take().map(Between::into_newest).or(newest.take());
-            between = Between::new(before, &decoder, Instant::now());
-            newest = Some(decoder.clone());
-            if between.is_some() {
-                pending = 0;
-                continue;
+            // One copy of the decoder a stream frame: the interpolation's end, or else
+            // the next one's start.
+            match before {
+                Some(from) if Between::spans(&from, &decoder) => {
+                    between = Some(Between::new(from, decoder.clone(), Instant::now()));
+                    pending = 0;
+                    continue;
+                }
+                _ => newest = Some(decoder.clone()),
             }
         }
         if pending == 0 || last_draw.elapsed() < min_draw_interval {

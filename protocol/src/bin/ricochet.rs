@@ -9,12 +9,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{Parser, Subcommand};
-use ricochet_engine::world::short;
 use ricochet_protocol::client::{list_worlds, parse_event, Client};
 use ricochet_protocol::command::{parse_input_log, Command, ServerCommand, TimedAction};
 use ricochet_protocol::frame::peek_header;
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, Network, NetworkArgs};
+use ricochet_protocol::text::short;
 
 #[derive(Parser)]
 #[command(
@@ -126,22 +126,20 @@ fn main() {
 /// Parses `NAME ARG=VALUE ...` or a JSON object into a command.
 pub fn parse_command_words(words: &[String]) -> Result<Command> {
     let joined = words.join(" ");
-    let json = if joined.trim_start().starts_with('{') {
-        joined
-    } else {
-        let mut object = serde_json::Map::new();
-        object.insert("do".into(), serde_json::Value::String(words[0].clone()));
-        for arg in &words[1..] {
-            let (name, value) = arg
-                .split_once('=')
-                .ok_or_else(|| anyhow!("argument `{arg}` is not NAME=VALUE"))?;
-            let value = serde_json::from_str(value)
-                .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
-            object.insert(name.to_string(), value);
-        }
-        serde_json::Value::Object(object).to_string()
-    };
-    Command::parse(json.as_bytes()).map_err(|e| anyhow!(e))
+    if joined.trim_start().starts_with('{') {
+        return Command::parse(joined.as_bytes()).map_err(|e| anyhow!(e));
+    }
+    let mut object = serde_json::Map::new();
+    object.insert("do".into(), serde_json::Value::String(words[0].clone()));
+    for arg in &words[1..] {
+        let (name, value) = arg
+            .split_once('=')
+            .ok_or_else(|| anyhow!("argument `{arg}` is not NAME=VALUE"))?;
+        let value = serde_json::from_str(value)
+            .unwrap_or_else(|_| serde_json::Value::String(value.to_string()));
+        object.insert(name.to_string(), value);
+    }
+    Command::from_value(serde_json::Value::Object(object)).map_err(|e| anyhow!(e))
 }
 
 fn run(cli: Cli) -> Result<i32> {
@@ -153,7 +151,7 @@ fn run(cli: Cli) -> Result<i32> {
             for w in list_worlds(&session, timeout)? {
                 // A world's name is what a peer chose: printed with control characters
                 // escaped, so it cannot drive the terminal.
-                println!("{}", ricochet_engine::world::short(&w, 256));
+                println!("{}", ricochet_protocol::text::short(&w, 256));
             }
             Ok(0)
         }

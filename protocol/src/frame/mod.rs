@@ -110,7 +110,6 @@
 use std::fmt;
 
 use glam::Vec4;
-use ricochet_engine::particles::{color_after, size_after};
 
 mod decode;
 mod encode;
@@ -122,6 +121,18 @@ mod wire;
 
 pub use decode::{peek_header, FrameDecoder, Header, MAX_STEPS_A_FRAME};
 pub use encode::{encode_statics, FrameEncoder};
+
+/// The particles' colour model, as receivers predict it: the start colour plus `delta`
+/// for each update of `age` (the engine's; the server's tests hold the two equal).
+pub fn color_after(start: Vec4, delta: Vec4, age: f32) -> Vec4 {
+    start + delta * age
+}
+
+/// The particles' size model: `size` scaled by `size_delta` once per update, `updates`
+/// updates later (the engine's; the server's tests hold the two equal).
+pub fn size_after(size: f32, size_delta: f32, updates: i32) -> f32 {
+    size * size_delta.powi(updates)
+}
 
 /// A receiver holds bodies' positions, displacements and their changes in integers of
 /// this many units (2^-24).
@@ -316,7 +327,7 @@ impl Particle {
         }
     }
 
-    /// Colour at `frame`, by the engine's model ([`color_after`]) from the colours of the
+    /// Colour at `frame`, by the particles' model ([`color_after`]) from the colours of the
     /// birth record: the start colour plus its change per update, times the age.
     pub fn color_at(&self, frame: u64) -> [f32; 4] {
         let elapsed = frame.saturating_sub(self.record_frame) as f32;
@@ -331,7 +342,7 @@ impl Particle {
         color_after(start, delta, age).to_array()
     }
 
-    /// Size at `frame`, by the engine's model ([`size_after`]).
+    /// Size at `frame`, by the particles' model ([`size_after`]).
     pub fn size_at(&self, frame: u64) -> f32 {
         let elapsed = frame.saturating_sub(self.record_frame).min(i32::MAX as u64) as i32;
         size_after(self.size, self.size_delta, elapsed)

@@ -210,9 +210,7 @@ pub(super) fn fold<T: Keyed, P>(
 /// the record removed it. `held` is left as it was, so a payload refused anywhere costs
 /// nothing, and `out` is the list the frame before last was read into, so no frame
 /// allocates. For items of plain data (particles) this is faster than [`read`] and
-/// [`fold`]; reading from `held` rather than from a copy of it took particles-100k's
-/// deltas from 1.75 ms to 0.58 to decode (whole-run means of single runs of `simulate
-/// --scene assets/scenes/particles-100k.toml --steps 300 --wire-stats`). For items that
+/// [`fold`] (docs/bench/engine-notes.md, "Reading particles in place"); for items that
 /// own strings (bodies) each copy would allocate.
 pub(super) fn read_into_copy<T: Keyed + Copy>(
     r: &mut Reader,

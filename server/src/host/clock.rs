@@ -85,6 +85,65 @@ impl Clock {
     }
 }
 
+/// A hosted world's clock: its interval is the world's `dt`, or longer where that would
+/// step faster than `max_rate`; a new `dt` or the end of a pause restarts it from now.
+pub(super) struct WorldClock {
+    clock: Clock,
+    dt: f64,
+    max_rate: f64,
+}
+
+impl WorldClock {
+    pub fn new(dt: f64, max_rate: f64) -> WorldClock {
+        WorldClock {
+            clock: Clock::new(step_interval(dt, max_rate)),
+            dt,
+            max_rate,
+        }
+    }
+
+    pub fn interval(&self) -> Duration {
+        self.clock.interval()
+    }
+
+    /// Follows the world after a frame boundary: a new `dt`, or a world no longer paused
+    /// (`resumed`), restarts the clock from now at the interval it gives.
+    pub fn follow(&mut self, dt: f64, resumed: bool) {
+        let interval = if dt != self.dt {
+            self.dt = dt;
+            step_interval(dt, self.max_rate)
+        } else {
+            self.clock.interval()
+        };
+        if interval != self.clock.interval() || resumed {
+            self.clock.restart(interval);
+        }
+    }
+
+    pub fn tick(&mut self, now: Instant, paused: bool) -> Tick {
+        self.clock.tick(now, paused)
+    }
+
+    pub fn stepped(&mut self) {
+        self.clock.stepped();
+    }
+}
+
+/// The wall time between steps: `dt`, or `1 / max_rate` where that is longer (said in the
+/// log: the world then runs slower than real time).
+fn step_interval(dt: f64, max_rate: f64) -> Duration {
+    let min_interval_ns = (1e9 / max_rate).round() as u64;
+    let dt_ns = (dt * 1e9).round() as u64;
+    if dt_ns < min_interval_ns {
+        tracing::warn!(
+            dt,
+            max_rate,
+            "dt is shorter than 1/max-rate: the world runs slower than real time"
+        );
+    }
+    Duration::from_nanos(dt_ns.max(min_interval_ns))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

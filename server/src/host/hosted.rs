@@ -5,12 +5,12 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use super::streams::Streams;
+use crate::wire;
 use ricochet_engine::scene;
 use ricochet_engine::world::{short, Limits, World};
 use ricochet_protocol::command::{
     Action, Command, Health, Reply, ServerCommand, WorldInfo, MAX_ERROR_BYTES,
 };
-use ricochet_protocol::world as wire;
 
 use super::HostOptions;
 use crate::scenes::{read_scene, resolve_scene};
@@ -208,13 +208,19 @@ impl Hosted {
         let frame = self.world.frame();
         let mut due_at_step = 0;
         let result: Result<Vec<String>, String> = match command {
-            Command::World(action) => check_frame_bytes(
-                &self.world,
-                adds(action, self.world.limits()),
-                self.max_frame_bytes,
-            )
-            .and_then(|()| self.world.apply(action).map_err(|e| e.to_string()))
-            .map(|o| o.ids),
+            Command::World(action) => {
+                // Only what adds bodies or particles can grow a key frame: the others skip
+                // the bound, which walks every body.
+                let more = adds(action, self.world.limits());
+                if more == (0, 0, 0) {
+                    Ok(())
+                } else {
+                    check_frame_bytes(&self.world, more, self.max_frame_bytes)
+                }
+                .and_then(|()| wire::to_engine(action))
+                .and_then(|a| self.world.apply(&a).map_err(|e| e.to_string()))
+                .map(|o| o.ids)
+            }
             Command::Server(ServerCommand::Pause) => {
                 self.paused = true;
                 Ok(Vec::new())

@@ -94,7 +94,7 @@ pub fn model(
             }
             // A setting may rebuild what depends on it: the broad phase's cells, the
             // particles' grid.
-            Action::Set(_) => (
+            Action::Set { .. } => (
                 Kind::Set,
                 BASE_NS + bodies * SCAN_NS_PER_BODY + particles * SCAN_NS_PER_PARTICLE,
             ),

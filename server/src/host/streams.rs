@@ -17,11 +17,11 @@
 
 use std::time::{Duration, Instant};
 
+use crate::wire;
 use ricochet_engine::world::World;
 use ricochet_protocol::command::StreamRate;
 use ricochet_protocol::frame::FrameEncoder;
 use ricochet_protocol::keys::STREAMS;
-use ricochet_protocol::world as wire;
 
 /// How many whole seconds a stream's reported rate is the peak of: a link must carry a
 /// stream's bursts (a fire's births come in bursts), not only its mean.
@@ -125,17 +125,15 @@ impl Streams {
         let now = Instant::now();
         let frame = world.frame();
         let mut out = Vec::new();
+        // The world read once for every stream due now.
+        let mut source = None;
         for (i, s) in self.streams.iter_mut().enumerate() {
             if !frame.is_multiple_of(s.every) {
                 continue;
             }
-            let bytes = wire::encode_frame_thinned(
-                &mut s.encoder,
-                world,
-                step_ms,
-                overruns,
-                s.every as u32,
-            );
+            let source =
+                source.get_or_insert_with(|| wire::FrameSource::of(world, step_ms, overruns));
+            let bytes = source.encode(&mut s.encoder, s.every as u32);
             s.rate.add(bytes.len() as u64, now);
             if s.watched {
                 out.push((i, bytes));

@@ -131,7 +131,7 @@ impl World {
         Ok(next)
     }
 
-    /// Applies an action [`World::check`] accepted.
+    /// Applies an action [`World::check`] accepted (its points are checked there).
     fn execute(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
         let none = Ok(ActionOutcome::default());
         match action {
@@ -149,7 +149,7 @@ impl World {
                 none
             }
             Action::FireDyePack { at } => {
-                let at = point("at", *at)?;
+                let at = DVec2::from(*at);
                 let id = self.fresh_id("dye_pack");
                 self.spawn(
                     BodyDef {
@@ -168,7 +168,7 @@ impl World {
                 )
             }
             Action::SpawnMinion { at, shape } => {
-                let at = point("at", *at)?;
+                let at = DVec2::from(*at);
                 let shape = match shape.unwrap_or_default() {
                     MinionShape::Circle => Shape::circle(behavior::MINION_RADIUS),
                     MinionShape::Rect => {
@@ -196,7 +196,7 @@ impl World {
                 )
             }
             Action::SpawnDumbMinion { at } => {
-                let at = point("at", *at)?;
+                let at = DVec2::from(*at);
                 let shape = if self.rng.random::<bool>() {
                     Shape::circle(behavior::MINION_RADIUS)
                 } else {
@@ -215,7 +215,7 @@ impl World {
                 )
             }
             Action::Select { at, group } => {
-                let at = point("at", *at)?;
+                let at = DVec2::from(*at);
                 let group = match group {
                     Some(name) => Some(
                         self.group(name)
@@ -236,7 +236,7 @@ impl World {
                 })
             }
             Action::Drag { to } => {
-                let to = point("to", *to)?;
+                let to = DVec2::from(*to);
                 let key = self.selected.ok_or(ActionError::NothingSelected)?;
                 let &i = self.by_key.get(&key).ok_or(ActionError::NothingSelected)?;
                 let body = &mut self.bodies[i as usize];
@@ -284,7 +284,7 @@ impl World {
                 Ok(ActionOutcome { ids })
             }
             Action::SpawnParticles { preset, at, count } => {
-                let at = point("at", *at)?.as_vec2();
+                let at = DVec2::from(*at).as_vec2();
                 let gravity = self.config.particle_gravity.as_vec2();
                 let recipe = self
                     .presets
@@ -297,7 +297,7 @@ impl World {
                 none
             }
             Action::StartEmitter { preset, count, at } => {
-                let at = point("at", *at)?.as_vec2();
+                let at = DVec2::from(*at).as_vec2();
                 if self.presets.get(preset).is_none() {
                     return Err(self.unknown_preset(preset));
                 }

@@ -9,18 +9,11 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use ricochet_engine::scene;
 use ricochet_engine::world::{Limits, World};
-use ricochet_protocol::command::{parse_input_log, Replay, TimedAction};
-use ricochet_protocol::world::{self as wire, write_frame};
-use ricochet_server::report::wire::WireStats;
+use ricochet_server::wire::stats::WireStats;
+use ricochet_server::wire::Replay;
+use ricochet_server::wire::{self as wire, write_frame};
 
 use crate::args::SimulateArgs;
-
-/// Reads an input log (`--inputs`), its errors naming the file and line.
-pub fn read_inputs(path: &Path) -> Result<Vec<TimedAction>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read inputs {}", path.display()))?;
-    parse_input_log(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
-}
 
 pub fn simulate(args: SimulateArgs) -> Result<()> {
     let SimulateArgs {
@@ -59,7 +52,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)?;
     let inputs = match inputs {
-        Some(p) => read_inputs(p)?,
+        Some(p) => ricochet_server::scenes::read_inputs(p)?,
         None => Vec::new(),
     };
 

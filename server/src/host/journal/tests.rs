@@ -132,9 +132,10 @@ fn a_journal_of_version_2_with_commands_written_after_they_ran_still_resumes() {
     let path = dir.path().join("world.journal");
     let frame = journal_of(&path, 3);
     // Version 2: the command with its reply, once it ran, then more steps.
-    let press = Command::World(Action::Set(
-        serde_json::from_str(r#"{"name":"gravity","value":[0,-9]}"#).unwrap(),
-    ));
+    let press = Command::World(Action::Set {
+        name: "gravity".into(),
+        value: serde_json::json!([0, -9]),
+    });
     let opts = options();
     let text = std::fs::read_to_string(&path).unwrap();
     let header = text.lines().next().unwrap().rsplit_once('\t').unwrap().0;

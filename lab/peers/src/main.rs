@@ -1,0 +1,162 @@
+//! `ricochet-peers`: every scene of the suite of scene kinds (`assets/scenes/suite/`) in
+//! Ricochet, Box2D v3 and rapier2d, alternated in one run, each judged by the scene's
+//! criteria; writes the generated `peers.md` and `peers.csv`.
+//!
+//!     cargo run --release --manifest-path lab/peers/Cargo.toml -- --out docs/bench
+
+mod box2d;
+mod engine;
+mod limit;
+mod rapier;
+mod run;
+mod scene;
+mod table;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use ricochet_engine::dynamics::WorldConfig;
+
+use crate::scene::Scene;
+use crate::table::{SceneResult, Setup};
+
+/// Ricochet against Box2D v3 and rapier2d on the suite of scene kinds.
+#[derive(Parser, Debug)]
+#[command(name = "ricochet-peers")]
+struct Args {
+    /// Writes DIR/peers.md and DIR/peers.csv.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Runs only the scenes whose file name contains TEXT.
+    #[arg(long, value_name = "TEXT")]
+    only: Option<String>,
+    /// Rounds: each runs every engine once on every scene.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    rounds: u32,
+    /// The scenes' directory [default: assets/scenes/suite from the repository root, or
+    /// ../../assets/scenes/suite from lab/peers/].
+    #[arg(long, value_name = "DIR")]
+    scenes: Option<PathBuf>,
+}
+
+fn main() -> Result<()> {
+    let args = Args::parse();
+    let dir = match &args.scenes {
+        Some(d) => d.clone(),
+        None => default_scenes()?,
+    };
+    let rounds = args.rounds as usize;
+    eprintln!("measuring this machine's memory bandwidth and peak arithmetic (one core)");
+    let limits = limit::Machine::measure();
+    let files = scene::scene_files(&dir, args.only.as_deref())?;
+    let mut results = Vec::new();
+    for path in &files {
+        let scene = Scene::load(path)?;
+        let outcomes = run::rounds(&scene, rounds)?;
+        results.push(SceneResult::new(&scene, outcomes));
+    }
+    let setup = Setup {
+        command: command_line(),
+        rounds,
+        machine: machine(),
+        box2d_version: box2d::version()?,
+        boxdd_version: locked_version("boxdd")?,
+        rapier_version: locked_version("rapier2d")?,
+        ricochet: WorldConfig::default(),
+        limits,
+    };
+    table::write(&args.out, &setup, &results)?;
+    eprintln!("wrote {}/peers.md and peers.csv", args.out.display());
+    Ok(())
+}
+
+/// The suite's directory as seen from the working directory: the repository root or
+/// `lab/peers/`.
+fn default_scenes() -> Result<PathBuf> {
+    let candidates = [
+        PathBuf::from("assets/scenes/suite"),
+        PathBuf::from("../../assets/scenes/suite"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/scenes/suite"),
+    ];
+    candidates
+        .iter()
+        .find(|d| d.is_dir())
+        .cloned()
+        .context("no assets/scenes/suite here, in .. or beside the crate: pass --scenes DIR")
+}
+
+/// The command that ran this one: the `cargo run` line when cargo started it, else the
+/// binary's own.
+fn command_line() -> String {
+    let args: Vec<String> = std::env::args().skip(1).map(|a| quote(&a)).collect();
+    if std::env::var_os("CARGO").is_some() {
+        let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml");
+        let manifest = std::env::current_dir()
+            .ok()
+            .and_then(|cwd| manifest.strip_prefix(&cwd).ok().map(Path::to_path_buf))
+            .unwrap_or(manifest);
+        let profile = if cfg!(debug_assertions) {
+            ""
+        } else {
+            " --release"
+        };
+        let features = if box2d::DOUBLE_PRECISION {
+            " --features double"
+        } else {
+            ""
+        };
+        format!(
+            "cargo run{profile}{features} --manifest-path {} -- {}",
+            manifest.display(),
+            args.join(" ")
+        )
+    } else {
+        let me = std::env::args()
+            .next()
+            .unwrap_or_else(|| "ricochet-peers".into());
+        format!("{me} {}", args.join(" "))
+    }
+}
+
+fn quote(arg: &str) -> String {
+    if arg
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || "-_./=".contains(c))
+    {
+        arg.to_string()
+    } else {
+        format!("'{}'", arg.replace('\'', r"'\''"))
+    }
+}
+
+/// "N cores, MODEL" from /proc/cpuinfo (the cores this process may use if that is unknown).
+fn machine() -> String {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let cores = info.lines().filter(|l| l.starts_with("processor")).count();
+    let cores = if cores > 0 {
+        cores
+    } else {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    };
+    let model = info
+        .lines()
+        .find(|l| l.starts_with("model name"))
+        .and_then(|l| l.split_once(':'))
+        .map_or("unknown CPU", |(_, m)| m.trim());
+    format!("{cores} cores, {model}")
+}
+
+/// The version of `package` in this crate's Cargo.lock.
+fn locked_version(package: &str) -> Result<String> {
+    const LOCK: &str = include_str!("../Cargo.lock");
+    let mut lines = LOCK.lines();
+    while let Some(line) = lines.next() {
+        if line == format!("name = \"{package}\"") {
+            if let Some(v) = lines.next().and_then(|l| l.strip_prefix("version = \"")) {
+                return Ok(v.trim_end_matches('"').to_string());
+            }
+        }
+    }
+    anyhow::bail!("{package} is not in peers/Cargo.lock")
+}

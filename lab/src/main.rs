@@ -1,0 +1,443 @@
+//! `ricochet-lab`: what measures Ricochet, apart from what serves it.
+//!
+//! `bench`, `suite` and `tradeoff` step scenes in this process; `soak`, `hostile` and
+//! `fanout` start real `ricochet-server` processes (the one beside this program, or
+//! `--server PATH`) and measure them from outside; `wire` encodes frames as the server
+//! does. Each command reads its flags, calls the library and says what it wrote. Build it
+//! with `cargo build --release -p ricochet-lab`.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use ricochet_lab::scene_tradeoff::ReportPages;
+use ricochet_lab::{bench, scene_tradeoff, soak, suite, tradeoff};
+use ricochet_protocol::net::init_tracing;
+
+#[derive(Parser)]
+#[command(
+    name = "ricochet-lab",
+    version,
+    about = "Ricochet's lab: measures the engine and real servers, and writes the figures of docs/"
+)]
+struct Cli {
+    /// The `ricochet-server` binary that soak, hostile and fanout start (default: the one
+    /// beside this program).
+    #[arg(long, global = true, value_name = "PATH")]
+    server: Option<PathBuf>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Measure the engine's speed on shipped scenes (figures, not pass/fail).
+    ///
+    /// The 100-level pyramid under each solver setting (with its worst drift over the
+    /// run), particles among shapes, free particles, and a hero among few or many static
+    /// platforms: the scenes of assets/scenes/ and assets/scenes/bench/. Prints a table;
+    /// with --out writes DIR/bench.csv and the table of DIR/README.md. Use a release
+    /// build.
+    Bench {
+        /// Steps of the pyramid (the brief: 500). The chapter's relaxation runs at most 20:
+        /// it is quadratic in the pile.
+        #[arg(long, default_value_t = 500)]
+        steps: u64,
+        /// Only the cases whose scene contains this.
+        #[arg(long)]
+        only: Option<String>,
+        /// Write DIR/bench.csv and the generated table of DIR/README.md (docs/bench).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Where the scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Measure the pyramid under this setting instead of the listed ones: overrides of
+        /// the shipped scene's `[world]` as NAME=VALUE (repeatable), e.g.
+        /// `--set impulse_iterations=6 --set substeps=1`.
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<String>,
+    },
+    /// Hold the suite of scene kinds to their criteria under named settings.
+    ///
+    /// Runs every scene of the suite (each states its criteria in `[criteria]`) under the
+    /// default and the settings it replaced or is without one of its parts, timing every
+    /// step of the run. Prints the tables; with --out writes DIR/suite.csv and the tables
+    /// of DIR/README.md (docs/bench). Use a release build.
+    Suite {
+        /// Where the suite's scenes are.
+        #[arg(long, default_value = "assets/scenes/suite", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Only the scenes whose file name contains this.
+        #[arg(long)]
+        only: Option<String>,
+        /// Write DIR/suite.csv and the generated tables of DIR/README.md (docs/bench).
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
+    },
+    /// Measure what each solver setting costs and buys.
+    ///
+    /// Runs the matrix of scenes x solver settings and writes DIR/tradeoff.csv and
+    /// DIR/tradeoff.png (time against error, the front in red). Use a release build.
+    ///
+    /// With --scene FILE: measures that scene (any scene, yours included) under each
+    /// candidate setting and under a converged reference, prints a table and with --out
+    /// writes DIR/<scene>.csv, DIR/<scene>.png and DIR/<scene>.md.
+    Tradeoff {
+        /// Where to write the report.
+        #[arg(long, default_value = "tradeoff")]
+        out: PathBuf,
+        #[command(flatten)]
+        scene: SceneTradeoffArgs,
+    },
+    /// Soak a real server on loopback and measure it (figures, not pass/fail).
+    ///
+    /// Starts `run` on the scene, journaled; client sessions send valid, invalid and
+    /// oversized commands at --rate in all and requests (retried with ids) that must all
+    /// be answered; a viewer stops reading frames for --stall-for seconds; at --kill-at
+    /// the server is killed (SIGKILL) and resumed from its journal. Prints a table; with
+    /// --out, writes it between the soak markers of FILE (docs/reliability.md). Use a
+    /// release build.
+    Soak {
+        #[arg(long, default_value = "assets/scenes/particles.toml")]
+        scene: PathBuf,
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        #[arg(long, default_value_t = 4)]
+        clients: usize,
+        /// Fire-and-forget commands a second, all clients together.
+        #[arg(long, default_value_t = 10_000.0)]
+        rate: f64,
+        /// Requests a second of each client (each waits for its answer).
+        #[arg(long, default_value_t = 20.0)]
+        requests: f64,
+        #[arg(long, default_value_t = 10.0)]
+        stall_at: f64,
+        #[arg(long, default_value_t = 10.0)]
+        stall_for: f64,
+        /// When to kill and resume the server, seconds into the run; never if absent.
+        #[arg(long)]
+        kill_at: Option<f64>,
+        /// Extra arguments of the server's `run`. Repeatable.
+        #[arg(long = "server-arg", value_name = "ARG", allow_hyphen_values = true)]
+        server_args: Vec<String>,
+        /// Write the table between the soak markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
+    /// Attack real servers on loopback, each defence on and off (figures, not pass/fail).
+    ///
+    /// Each attack of the security audit runs with its defence and with that defence
+    /// switched off by the server's flags, and the table says what the defence buys. Prints a table; with --out, writes it
+    /// between the hostile markers of FILE (docs/security.md). Use a release build.
+    Hostile {
+        /// Seconds of each attack.
+        #[arg(long, default_value_t = 5.0)]
+        seconds: f64,
+        /// Where the shipped scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Write the table between the hostile markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
+    /// Bytes on the wire per scene, frames encoded as `run` sends them.
+    ///
+    /// Runs shipped scenes headless and encodes every frame exactly as `run` sends it; report each scene's bytes a frame (key frames and headers included)
+    /// per body or particle, and the bandwidth a viewer needs at 60 frames a second.
+    /// Prints a table; with --out, writes it between the wire markers of FILE
+    /// (docs/network.md).
+    Wire {
+        /// Steps of each scene.
+        #[arg(long, default_value_t = 600)]
+        steps: u64,
+        /// A key frame every this many frames, as `run` sends them.
+        #[arg(long, default_value_t = 60)]
+        keyframe_interval: u64,
+        /// Where the shipped scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Write the table between the wire markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
+    /// One server and N viewers, directly and through a router (figures, not pass/fail).
+    ///
+    /// The viewers decode every frame of particles-100k (its emitter started again every
+    /// 4 s), directly and through a router; reports the
+    /// server's CPU, the bytes it wrote, its late steps, and each viewer's frames and lag.
+    /// Prints a table; with --out, writes it between the fanout markers of FILE
+    /// (docs/network.md). Use a release build.
+    Fanout {
+        /// Viewers.
+        #[arg(long, default_value_t = 8)]
+        viewers: usize,
+        /// Seconds of each mode.
+        #[arg(long, default_value_t = 12.0)]
+        seconds: f64,
+        /// Where the shipped scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// Write the table between the fanout markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
+}
+
+/// `tradeoff --scene`: the trade measured on one scene.
+#[derive(clap::Args)]
+pub struct SceneTradeoffArgs {
+    /// The scenes to measure (TOML), each on its own (`--scene a.toml b.toml`). Without
+    /// any, the built-in report of shipped scenes.
+    #[arg(long, num_args = 1..)]
+    pub scene: Vec<PathBuf>,
+    /// Steps of each run.
+    #[arg(long, default_value_t = 300, requires = "scene")]
+    pub steps: u64,
+    /// Actions to apply, as `simulate --inputs` takes them (one scene only).
+    #[arg(long, requires = "scene")]
+    pub inputs: Option<PathBuf>,
+    /// A setting to measure instead of the default matrix: `[world]` overrides separated
+    /// by `;`, e.g. --candidate "solver=impulses;impulse_iterations=8". Repeatable.
+    #[arg(long = "candidate", value_name = "SETS", requires = "scene")]
+    pub candidates: Vec<String>,
+    /// The reference is converged when two refinements agree within this many of the
+    /// scene's length units (its median dynamic body size), worst body position
+    /// difference over the run.
+    #[arg(long, default_value_t = 1e-6, requires = "scene")]
+    pub tolerance: f64,
+    /// Refinements of the reference at most (each doubles sub-steps and passes).
+    #[arg(long, default_value_t = 4, requires = "scene")]
+    pub max_refinements: u32,
+    /// Seconds the reference may take in all.
+    #[arg(long, default_value_t = 300.0, requires = "scene")]
+    pub reference_budget: f64,
+}
+
+fn main() -> Result<()> {
+    init_tracing("info");
+    let cli = Cli::parse();
+    if let Some(server) = cli.server {
+        ricochet_lab::use_server_binary(server);
+    }
+    match cli.command {
+        Command::Bench {
+            steps,
+            only,
+            out,
+            scenes,
+            set,
+        } => {
+            let progress = bar("{bar:30} {pos}/{len} {msg}");
+            let rows = bench::run_all(&scenes, steps, only.as_deref(), set, &progress)?;
+            progress.finish_and_clear();
+            println!("{}", bench::tables(&rows));
+            if let Some(dir) = out {
+                bench::write(&dir, &rows, &ricochet_lab::command_line())?;
+                eprintln!(
+                    "wrote {} and the tables of {}",
+                    dir.join("bench.csv").display(),
+                    dir.join("README.md").display()
+                );
+            }
+            Ok(())
+        }
+        Command::Suite { scenes, only, out } => {
+            let progress = bar("{bar:30} {pos}/{len} {msg}");
+            let rows = suite::run_all(&scenes, only.as_deref(), &progress)?;
+            let targeted = suite::run_targeted(&scenes, only.as_deref(), suite::TARGET, &progress)?;
+            progress.finish_and_clear();
+            println!("{}", suite::tables(&rows, &targeted));
+            if let Some(dir) = out {
+                suite::write(&dir, &rows, &targeted, &ricochet_lab::command_line())?;
+                eprintln!(
+                    "wrote {} and the tables of its README.md",
+                    dir.join("suite.csv").display()
+                );
+            }
+            Ok(())
+        }
+        Command::Tradeoff { out, scene } if !scene.scene.is_empty() => scene_tradeoff(out, scene),
+        Command::Tradeoff { out, .. } => {
+            let progress = bar("{prefix}: {bar:40} {pos}/{len} steps, eta {eta}: {msg}");
+            let (cells, references) = tradeoff::run_all(&progress)?;
+            progress.finish_and_clear();
+            print!("{}", tradeoff::to_text(&cells));
+            let command = format!("ricochet-lab tradeoff --out {}", out.display());
+            let written = tradeoff::write(&out, &cells, &references, &command)?;
+            eprintln!("wrote {}", list(&written));
+            Ok(())
+        }
+        Command::Soak {
+            scene,
+            seconds,
+            clients,
+            rate,
+            requests,
+            stall_at,
+            stall_for,
+            kill_at,
+            server_args,
+            out,
+        } => {
+            let opts = soak::SoakOptions {
+                scene,
+                seconds,
+                clients: clients.max(1),
+                rate,
+                requests,
+                stall_at,
+                stall_for,
+                kill_at,
+                server_args,
+            };
+            let report = soak::run(&opts)?;
+            println!("{}", report.to_markdown(&opts));
+            if let Some(out) = out {
+                report.write(&opts, &out)?;
+                eprintln!("wrote the table of {}", out.display());
+            }
+            Ok(())
+        }
+        Command::Hostile {
+            seconds,
+            scenes,
+            out,
+        } => {
+            let report = ricochet_lab::hostile::run(&scenes, seconds)?;
+            print_table(&report.to_markdown(), out.as_deref(), "hostile")
+        }
+        Command::Wire {
+            steps,
+            keyframe_interval,
+            scenes,
+            out,
+        } => {
+            let report = ricochet_lab::wire::run(&scenes, steps, keyframe_interval)?;
+            print_table(&report.to_markdown(), out.as_deref(), "wire")
+        }
+        Command::Fanout {
+            viewers,
+            seconds,
+            scenes,
+            out,
+        } => {
+            let report = ricochet_lab::fanout::run(&scenes, viewers, seconds)?;
+            print_table(&report.to_markdown(), out.as_deref(), "fanout")
+        }
+    }
+}
+
+/// Prints a report's table and, with `out`, writes it between the `name` markers of
+/// that page.
+fn print_table(table: &str, out: Option<&std::path::Path>, name: &str) -> Result<()> {
+    println!("{table}");
+    if let Some(out) = out {
+        ricochet_lab::splice(out, name, table)?;
+        eprintln!("wrote the table of {}", out.display());
+    }
+    Ok(())
+}
+
+/// A progress bar of this template, its length set by the run.
+fn bar(template: &str) -> ProgressBar {
+    ProgressBar::new(0)
+        .with_style(ProgressStyle::with_template(template).expect("a valid template"))
+}
+
+/// Files, for a line saying they were written.
+fn list(files: &[PathBuf]) -> String {
+    files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// `tradeoff --scene FILE...`: the trade measured on each scene, a page each, and an
+/// index of the pages when there are several.
+fn scene_tradeoff(out: PathBuf, args: SceneTradeoffArgs) -> Result<()> {
+    use scene_tradeoff::{measure, write_index, Candidate, Options, Subject};
+    if args.inputs.is_some() && args.scene.len() > 1 {
+        anyhow::bail!("--inputs goes with one --scene (the actions are that scene's)");
+    }
+    let inputs = match &args.inputs {
+        Some(p) => ricochet_server::scenes::read_inputs(p)?,
+        None => Vec::new(),
+    };
+    // NaN fails this too.
+    if args.tolerance.is_nan() || args.tolerance <= 0.0 {
+        anyhow::bail!("--tolerance must be above 0 (got {})", args.tolerance);
+    }
+    let candidates = if args.candidates.is_empty() {
+        None
+    } else {
+        Some(
+            args.candidates
+                .iter()
+                .map(|c| Candidate::parse(c))
+                .collect::<Result<Vec<_>>>()?,
+        )
+    };
+    // Every scene and candidate is read and checked before anything runs: a bad one fails
+    // here, named.
+    let mut subjects = Vec::new();
+    for path in &args.scene {
+        let subject = Subject::read(path, args.steps, inputs.clone())?;
+        for c in candidates.iter().flatten() {
+            subject
+                .world(&c.overrides)
+                .with_context(|| format!("{}: candidate `{}`", path.display(), c.name))?;
+        }
+        subjects.push(subject);
+    }
+    let opts = Options {
+        tolerance: args.tolerance,
+        max_refinements: args.max_refinements,
+        reference_budget: args.reference_budget,
+        budget: None,
+    };
+    std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut pages = Vec::new();
+    for (k, subject) in subjects.iter().enumerate() {
+        let progress = bar(&format!(
+            "scene {}/{}: {{bar:40}} {{pos}}/{{len}} steps, eta {{eta}}: {{msg}}",
+            k + 1,
+            subjects.len()
+        ));
+        progress.set_length(args.steps);
+        let report = measure(subject, candidates.clone(), &opts, &progress)?;
+        progress.finish_and_clear();
+        println!("{}", report.to_text());
+        let mut command = format!(
+            "ricochet-lab tradeoff --scene {} --steps {}",
+            subject.path.display(),
+            args.steps
+        );
+        if let Some(p) = &args.inputs {
+            command += &format!(" --inputs {}", p.display());
+        }
+        for c in &args.candidates {
+            command += &format!(" --candidate '{c}'");
+        }
+        if args.reference_budget != Options::default().reference_budget {
+            command += &format!(" --reference-budget {}", args.reference_budget);
+        }
+        command += &format!(" --out {}", out.display());
+        let (page, written) = report.write(&out, &command)?;
+        eprintln!("wrote {}", list(&written));
+        pages.push((page, report));
+    }
+    if pages.len() > 1 {
+        let scenes: Vec<String> = args.scene.iter().map(|p| p.display().to_string()).collect();
+        let command = format!(
+            "ricochet-lab tradeoff --steps {} --out {} --scene {}",
+            args.steps,
+            out.display(),
+            scenes.join(" ")
+        );
+        eprintln!("wrote {}", write_index(&out, &pages, &command)?.display());
+    }
+    Ok(())
+}
