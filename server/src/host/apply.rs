@@ -52,14 +52,14 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
     let (id, parsed) = Command::parse_request(&payload, host.world.limits().command_bytes as usize);
     let answer = match id.as_deref().and_then(|id| answered.get(&sender, id)) {
         Some(first) => {
-            host.health.retries += 1;
+            host.accounts.health.retries += 1;
             first
         }
         None => {
             let price = parsed.as_ref().ok().map(|command| host.price(command));
             if let Some(price) = &price {
                 if let Err(over) = budgets.admit(&key, price.time(), Instant::now()) {
-                    host.health.over_budget += 1;
+                    host.accounts.health.over_budget += 1;
                     tracing::debug!(frame, "command over budget: {over}");
                     if let Some(query) = query {
                         let mut reply = Reply::refused(frame, over.to_string());
@@ -84,7 +84,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
                     }
                 },
                 Err(error) => {
-                    host.health.refused += 1;
+                    host.accounts.health.refused += 1;
                     Handled {
                         reply: Reply::refused(frame, error.clone()),
                         due_at_step: 0,
@@ -95,7 +95,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
             tracing::trace!(
                 frame,
                 ok = reply.ok,
-                pending = host.pending_steps,
+                pending = host.stepping.pending_steps,
                 "applied"
             );
             if let (Some(journal), Journaled::Written) = (journal.as_mut(), journaled_as) {
@@ -130,7 +130,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
         }
     };
     if let Some(query) = query {
-        if answer.due_at_step > host.steps_run {
+        if answer.due_at_step > host.stepping.steps_run {
             deferred.push(Deferred {
                 due_at_step: answer.due_at_step,
                 query,

@@ -31,7 +31,7 @@ impl Serving {
                     outbox: &self.wiring.outbox,
                 },
             );
-            if self.host.fresh {
+            if self.host.stepping.fresh {
                 self.publisher.frame(&mut self.host);
             }
         }
@@ -40,7 +40,7 @@ impl Serving {
     /// Runs the steps `step` commands asked for, for at most [`STEP_SLICE`].
     pub(super) fn run_asked_steps(&mut self) {
         let began = Instant::now();
-        while self.host.pending_steps > 0 && began.elapsed() < STEP_SLICE {
+        while self.host.stepping.pending_steps > 0 && began.elapsed() < STEP_SLICE {
             self.advance();
         }
     }
@@ -50,7 +50,7 @@ impl Serving {
         if self.deferred.is_empty() {
             return;
         }
-        let steps_run = self.host.steps_run;
+        let steps_run = self.host.stepping.steps_run;
         let (ready, waiting): (Vec<_>, Vec<_>) = self
             .deferred
             .drain(..)

@@ -1,5 +1,7 @@
-//! The hosted world: the engine's world, the scene it came from, what the wire remembers
-//! of it, and the server's clock state (paused, steps asked for).
+//! The hosted world: the engine's world and, by concern, what the host keeps beside it:
+//! the scene it came from ([`Source`]), the rules any world here is held to, what the
+//! wire remembers of it ([`WireState`]), the clock's side ([`Stepping`]) and what
+//! commands cost and the server's counts ([`Accounts`]).
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -29,12 +31,39 @@ pub const SNAPSHOT_EVERY: Duration = Duration::from_millis(250);
 
 pub use super::price;
 
-/// The world, its scene and what the wire remembers of it.
+/// The world and what the host keeps beside it, by concern.
 pub struct Hosted {
     pub world: World,
-    pub scene_text: String,
-    pub scene_name: PathBuf,
-    overrides: Vec<String>,
+    /// What the world was made from.
+    pub source: Source,
+    /// What the host holds any world it is given to.
+    rules: Rules,
+    /// What the wire remembers of the world.
+    pub wire: WireState,
+    /// The clock's side: paused or not, steps asked for, late steps.
+    pub stepping: Stepping,
+    /// What commands cost here and what the server took and turned away.
+    pub accounts: Accounts,
+    /// The setting picked for the scene's accuracy target, and why.
+    pub accuracy: Option<String>,
+}
+
+/// The scene a world was made from, and the overrides it runs under.
+pub struct Source {
+    pub text: String,
+    pub name: PathBuf,
+    pub overrides: Vec<String>,
+}
+
+/// What the host holds every world it is given to (a `load`, a `reset`).
+struct Rules {
+    scenes_dir: Option<PathBuf>,
+    limits: Limits,
+    max_frame_bytes: u64,
+}
+
+/// What the wire remembers of the world: its frame streams and the statics snapshot.
+pub struct WireState {
     /// The frame streams and their encoders.
     pub streams: Streams,
     statics_revision: Option<u64>,
@@ -42,6 +71,12 @@ pub struct Hosted {
     /// When the statics were last published, and which (the generation and the world's
     /// statics revision).
     snapshot_sent: Option<(Instant, (u64, u64))>,
+    /// Bumped by every (re)load, so viewers can tell a new scene.
+    pub generation: u64,
+}
+
+/// The clock's side of the world.
+pub struct Stepping {
     pub paused: bool,
     /// Steps asked for by `step` commands and not yet run: the host runs them in slices,
     /// answering other clients between slices.
@@ -53,17 +88,14 @@ pub struct Hosted {
     pub fresh: bool,
     pub overruns: u32,
     pub last_step_ms: f32,
-    /// Bumped by every (re)load, so viewers can tell a new scene.
-    pub generation: u64,
-    scenes_dir: Option<PathBuf>,
-    limits: Limits,
-    max_frame_bytes: u64,
+}
+
+/// What commands cost here, and the server's counts.
+pub struct Accounts {
     pub health: Health,
     /// How much longer than their model commands took here (kept across worlds: it is
     /// the machine's).
     calibration: price::Calibration,
-    /// The setting picked for the scene's accuracy target, and why.
-    pub accuracy: Option<String>,
 }
 
 /// What handling a command did.
@@ -95,63 +127,74 @@ impl Hosted {
     ) -> Self {
         Hosted {
             world,
-            scene_text,
-            scene_name,
-            overrides: opts.overrides.clone(),
-            streams: Streams::new(opts.keyframe_interval),
-            statics_revision: None,
-            snapshot: Vec::new(),
-            snapshot_sent: None,
-            paused: false,
-            pending_steps: 0,
-            steps_run: 0,
-            fresh: true,
-            overruns: 0,
-            last_step_ms: 0.0,
-            generation: 0,
-            scenes_dir: opts.scenes_dir.clone(),
-            limits: opts.limits.clone(),
-            max_frame_bytes: opts.max_frame_bytes,
-            health: Health::default(),
-            calibration: price::Calibration::default(),
+            source: Source {
+                text: scene_text,
+                name: scene_name,
+                overrides: opts.overrides.clone(),
+            },
+            rules: Rules {
+                scenes_dir: opts.scenes_dir.clone(),
+                limits: opts.limits.clone(),
+                max_frame_bytes: opts.max_frame_bytes,
+            },
+            wire: WireState {
+                streams: Streams::new(opts.keyframe_interval),
+                statics_revision: None,
+                snapshot: Vec::new(),
+                snapshot_sent: None,
+                generation: 0,
+            },
+            stepping: Stepping {
+                paused: false,
+                pending_steps: 0,
+                steps_run: 0,
+                fresh: true,
+                overruns: 0,
+                last_step_ms: 0.0,
+            },
+            accounts: Accounts {
+                health: Health::default(),
+                calibration: price::Calibration::default(),
+            },
             accuracy: None,
         }
     }
 
     fn replace_world(&mut self, world: World) {
         self.world = world;
-        self.generation += 1;
-        self.streams.force_key_frame();
-        self.statics_revision = None;
-        self.fresh = true;
+        self.wire.generation += 1;
+        self.wire.streams.force_key_frame();
+        self.wire.statics_revision = None;
+        self.stepping.fresh = true;
     }
 
     pub fn info(&self) -> WorldInfo {
         let [lo, hi] = self.world.config.bounds;
         WorldInfo {
             scene: self
-                .scene_name
+                .source
+                .name
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_else(|| self.scene_name.display().to_string()),
+                .unwrap_or_else(|| self.source.name.display().to_string()),
             bounds: [[lo.x, lo.y], [hi.x, hi.y]],
             dt: self.world.config.dt,
             groups: self.world.group_names().map(str::to_string).collect(),
-            generation: self.generation,
-            health: Some(self.health.clone()),
+            generation: self.wire.generation,
+            health: Some(self.accounts.health.clone()),
             accuracy: self.accuracy.clone(),
-            streams: self.streams.rates(),
+            streams: self.wire.streams.rates(),
         }
     }
 
     /// Re-encodes the statics snapshot if they changed; true when it did.
     pub fn refresh_snapshot(&mut self) -> bool {
         let rev = self.world.statics_revision();
-        if self.statics_revision == Some(rev) {
+        if self.wire.statics_revision == Some(rev) {
             return false;
         }
-        self.snapshot = wire::statics_snapshot(&self.world);
-        self.statics_revision = Some(rev);
+        self.wire.snapshot = wire::statics_snapshot(&self.world);
+        self.wire.statics_revision = Some(rev);
         true
     }
 
@@ -160,22 +203,25 @@ impl Hosted {
     /// change held back goes out on the first call after that (the host calls this every
     /// pass of its loop, paused or not).
     pub fn snapshot_due(&mut self, now: Instant) -> Option<Vec<u8>> {
-        let current = (self.generation, self.world.statics_revision());
-        match self.snapshot_sent {
+        let current = (self.wire.generation, self.world.statics_revision());
+        match self.wire.snapshot_sent {
             Some((_, sent)) if sent == current => return None,
             Some((at, _)) if now.saturating_duration_since(at) < SNAPSHOT_EVERY => return None,
             _ => {}
         }
         self.refresh_snapshot();
-        self.snapshot_sent = Some((now, current));
-        Some(self.snapshot.clone())
+        self.wire.snapshot_sent = Some((now, current));
+        Some(self.wire.snapshot.clone())
     }
 
     /// The frames due after the world's last step, stream by stream (stream index,
     /// bytes).
     pub fn encode_frames(&mut self) -> Vec<(usize, Vec<u8>)> {
-        self.streams
-            .encode(&self.world, self.last_step_ms, self.overruns)
+        self.wire.streams.encode(
+            &self.world,
+            self.stepping.last_step_ms,
+            self.stepping.overruns,
+        )
     }
 
     /// The stepping thread's time `command` is expected to take here, before it runs: the
@@ -184,14 +230,14 @@ impl Hosted {
     /// kind took here ([`price`]). The budgets refuse by this price and charge the time
     /// the command really took, so a price too low is paid in full all the same.
     pub fn price(&self, command: &Command) -> price::Price {
-        self.calibration.price(
+        self.accounts.calibration.price(
             price::model(
                 command,
                 self.world.bodies().len() as f64,
                 self.world.particles().len() as f64,
-                self.scene_text.len(),
+                self.source.text.len(),
                 self.world.limits().particles_per_action,
-                u64::from(self.limits.command_bytes),
+                u64::from(self.rules.limits.command_bytes),
             ),
             Instant::now(),
         )
@@ -199,7 +245,7 @@ impl Hosted {
 
     /// Learns what a command priced `price` took here (see [`price::Calibration`]).
     pub fn learn(&mut self, price: &price::Price, took: Duration) {
-        self.calibration.learn(price, took, Instant::now());
+        self.accounts.calibration.learn(price, took, Instant::now());
     }
 
     /// Applies one command at the frame boundary; the reply says what it did. A `step`
@@ -215,51 +261,51 @@ impl Hosted {
                 if more == (0, 0, 0) {
                     Ok(())
                 } else {
-                    check_frame_bytes(&self.world, more, self.max_frame_bytes)
+                    check_frame_bytes(&self.world, more, self.rules.max_frame_bytes)
                 }
                 .and_then(|()| wire::to_engine(action))
                 .and_then(|a| self.world.apply(&a).map_err(|e| e.to_string()))
                 .map(|o| o.ids)
             }
             Command::Server(ServerCommand::Pause) => {
-                self.paused = true;
+                self.stepping.paused = true;
                 Ok(Vec::new())
             }
             Command::Server(ServerCommand::Resume) => {
-                self.paused = false;
+                self.stepping.paused = false;
                 Ok(Vec::new())
             }
             Command::Server(ServerCommand::Step { n }) if *n > MAX_STEPS_PER_COMMAND => Err(
                 format!("`n` = {n} is more than {MAX_STEPS_PER_COMMAND} steps in one command"),
             ),
             Command::Server(ServerCommand::Step { n })
-                if self.pending_steps + u64::from(*n) > MAX_PENDING_STEPS =>
+                if self.stepping.pending_steps + u64::from(*n) > MAX_PENDING_STEPS =>
             {
                 Err(format!(
                     "{} steps are still to run: at most {MAX_PENDING_STEPS} may wait",
-                    self.pending_steps
+                    self.stepping.pending_steps
                 ))
             }
             Command::Server(ServerCommand::Step { n }) => {
-                self.paused = true;
-                self.pending_steps += u64::from(*n);
-                due_at_step = self.steps_run + self.pending_steps;
+                self.stepping.paused = true;
+                self.stepping.pending_steps += u64::from(*n);
+                due_at_step = self.stepping.steps_run + self.stepping.pending_steps;
                 Ok(Vec::new())
             }
             Command::Server(ServerCommand::Reset { paused }) => {
                 match scene::parse_with(
-                    &self.scene_text,
-                    &self.scene_name,
-                    &self.overrides,
-                    &self.limits,
+                    &self.source.text,
+                    &self.source.name,
+                    &self.source.overrides,
+                    &self.rules.limits,
                 )
                 .map_err(|e| e.to_string())
                 .and_then(|world| {
-                    check_frame_bytes(&world, (0, 0, 0), self.max_frame_bytes).map(|()| world)
+                    check_frame_bytes(&world, (0, 0, 0), self.rules.max_frame_bytes).map(|()| world)
                 }) {
                     Ok(world) => {
                         self.replace_world(world);
-                        self.paused = *paused;
+                        self.stepping.paused = *paused;
                         Ok(Vec::new())
                     }
                     Err(e) => Err(e),
@@ -294,7 +340,7 @@ impl Hosted {
     ) -> Handled {
         let reply = match result {
             Ok(ids) => {
-                self.health.applied += 1;
+                self.accounts.health.applied += 1;
                 Reply {
                     ok: true,
                     frame,
@@ -304,7 +350,7 @@ impl Hosted {
                 }
             }
             Err(error) => {
-                self.health.refused += 1;
+                self.accounts.health.refused += 1;
                 due_at_step = 0;
                 Reply::refused(frame, short(&error, MAX_ERROR_BYTES))
             }
@@ -321,7 +367,7 @@ impl Hosted {
     ) -> Result<(String, PathBuf), String> {
         Ok(match (path, text) {
             (Some(p), None) => {
-                let file = match &self.scenes_dir {
+                let file = match &self.rules.scenes_dir {
                     Some(dir) => resolve_scene(dir, p)?,
                     None => {
                         return Err("the server has no scenes directory: start it with --scenes DIR to load scenes by name, or send the scene's text".to_string())
@@ -338,11 +384,11 @@ impl Hosted {
 
     /// Replaces the world by the scene `text` (named `name` in errors and the info).
     pub fn adopt_scene(&mut self, text: String, name: PathBuf) -> Result<(), String> {
-        let world = scene::parse_with(&text, &name, &self.overrides, &self.limits)
+        let world = scene::parse_with(&text, &name, &self.source.overrides, &self.rules.limits)
             .map_err(|e| e.to_string())?;
-        check_frame_bytes(&world, (0, 0, 0), self.max_frame_bytes)?;
-        self.scene_text = text;
-        self.scene_name = name;
+        check_frame_bytes(&world, (0, 0, 0), self.rules.max_frame_bytes)?;
+        self.source.text = text;
+        self.source.name = name;
         self.replace_world(world);
         Ok(())
     }
@@ -350,17 +396,17 @@ impl Hosted {
     pub fn step(&mut self) {
         let t = Instant::now();
         self.world.step();
-        self.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
-        self.health.frames += 1;
+        self.stepping.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
+        self.accounts.health.frames += 1;
     }
 
     /// One step, as the clock, a `step` command or a journal's replay takes it: a step
     /// taken while `step` commands are pending counts as one of theirs.
     pub fn advance(&mut self) {
         self.step();
-        if self.pending_steps > 0 {
-            self.pending_steps -= 1;
-            self.steps_run += 1;
+        if self.stepping.pending_steps > 0 {
+            self.stepping.pending_steps -= 1;
+            self.stepping.steps_run += 1;
         }
     }
 }

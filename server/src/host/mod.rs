@@ -198,18 +198,18 @@ pub fn run(opts: HostOptions) -> Result<()> {
     let mut started = start::start(&opts)?;
     let opts = &started.opts;
     let keys = WorldKeys::new(&opts.world).map_err(|e| anyhow!(e))?;
-    started.host.paused |= opts.paused;
+    started.host.stepping.paused |= opts.paused;
     let session = zenoh::open(server_config(opts)?)
         .wait()
         .map_err(|e| anyhow!("cannot open the server's zenoh session: {e}"))?;
     let (wiring, publisher) = Wiring::declare(&session, &keys, &started.host, opts)?;
     tracing::info!(
         world = %opts.world,
-        scene = %started.host.scene_name.display(),
+        scene = %started.host.source.name.display(),
         mode = opts.network.mode_name(),
         listen = ?opts.network.listen,
         connect = ?opts.network.connect,
-        paused = started.host.paused,
+        paused = started.host.stepping.paused,
         "serving"
     );
     Serving::new(started, wiring, publisher).run()

@@ -56,12 +56,12 @@ impl Publisher {
     /// Publishes the world's current frame on every watched stream (and the statics if
     /// due), and writes it to the dump.
     pub fn frame(&mut self, h: &mut Hosted) {
-        h.fresh = false;
+        h.stepping.fresh = false;
         self.statics(h);
         // A stream is published only while someone subscribes to it (the frames thread
         // asks zenoh twice a second); a stream watched again starts with a key frame.
-        for i in 0..h.streams.streams.len() {
-            h.streams.set_watched(i, self.out.watched(i));
+        for i in 0..h.wire.streams.streams.len() {
+            h.wire.streams.set_watched(i, self.out.watched(i));
         }
         for (i, bytes) in h.encode_frames() {
             // The source names this session, which holds the world's token: clients take

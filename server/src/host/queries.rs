@@ -26,19 +26,20 @@ impl Serving {
             let body = match ask {
                 Ask::Snapshot => {
                     host.refresh_snapshot();
-                    host.snapshot.clone()
+                    host.wire.snapshot.clone()
                 }
                 Ask::State(every) => {
-                    let at = (host.generation, host.world.frame(), every);
+                    let at = (host.wire.generation, host.world.frame(), every);
                     match &state.0 {
                         Some((made, bytes)) if *made == at => bytes.clone(),
                         _ => {
                             // Before a tier's first frame, the full stream's state: the
                             // tier's first frame is a key frame.
                             let bytes = host
+                                .wire
                                 .streams
                                 .resync(every)
-                                .or_else(|| host.streams.resync(1))
+                                .or_else(|| host.wire.streams.resync(1))
                                 .expect("frame 0 was encoded");
                             state.0 = Some((at, bytes.clone()));
                             bytes
@@ -51,7 +52,7 @@ impl Serving {
                     serde_json::to_vec(&info).expect("world info serialises")
                 }
             };
-            host.health.queries += 1;
+            host.accounts.health.queries += 1;
             wiring.outbox.reply(query, body);
         }
     }

@@ -69,7 +69,7 @@ impl Serving {
             // A change of the statics held back by their rate goes out once it is due.
             self.publisher.statics(&mut self.host);
             self.answer_queries();
-            let was_paused = self.host.paused;
+            let was_paused = self.host.stepping.paused;
             self.frame_boundary();
             self.run_asked_steps();
             self.reply_due();
@@ -77,8 +77,10 @@ impl Serving {
             let Wiring { inbox, outbox, .. } = &self.wiring;
             self.upkeep
                 .run(&self.host, inbox, outbox, &mut self.budgets);
-            self.clock
-                .follow(self.host.world.config.dt, was_paused && !self.host.paused);
+            self.clock.follow(
+                self.host.world.config.dt,
+                was_paused && !self.host.stepping.paused,
+            );
             if self
                 .opts
                 .max_frames
@@ -86,12 +88,12 @@ impl Serving {
             {
                 tracing::info!(
                     frame = self.host.world.frame(),
-                    overruns = self.host.overruns,
+                    overruns = self.host.stepping.overruns,
                     "stopping after the last frame"
                 );
                 return Ok(());
             }
-            if self.host.pending_steps > 0 {
+            if self.host.stepping.pending_steps > 0 {
                 // More steps to run: serve the others, then the next slice, without sleeping.
                 continue;
             }
@@ -106,7 +108,7 @@ impl Serving {
     /// Whether the clock has a step due now (after sleeping until it is, at most
     /// [`super::clock::Clock::MAX_SLEEP`]); late steps are counted.
     fn step_due(&mut self) -> bool {
-        match self.clock.tick(Instant::now(), self.host.paused) {
+        match self.clock.tick(Instant::now(), self.host.stepping.paused) {
             Tick::Wait(wait) => {
                 std::thread::sleep(wait);
                 false
@@ -115,7 +117,7 @@ impl Serving {
             Tick::Step { late, dropped } => {
                 let host = &mut self.host;
                 if late >= 1 {
-                    host.overruns = host.overruns.saturating_add(1);
+                    host.stepping.overruns = host.stepping.overruns.saturating_add(1);
                 }
                 if dropped > 0 {
                     tracing::warn!(
@@ -123,7 +125,8 @@ impl Serving {
                         frame = host.world.frame(),
                         "the world cannot keep real time; the clock re-anchors"
                     );
-                    host.overruns = host
+                    host.stepping.overruns = host
+                        .stepping
                         .overruns
                         .saturating_add(dropped.min(u32::MAX as u64) as u32);
                 }
@@ -138,7 +141,10 @@ impl Serving {
         self.host.advance();
         self.publisher.frame(&mut self.host);
         if let Some(journal) = self.journal.as_mut() {
-            journal.stepped(self.host.world.frame(), f64::from(self.host.last_step_ms));
+            journal.stepped(
+                self.host.world.frame(),
+                f64::from(self.host.stepping.last_step_ms),
+            );
         }
     }
 
@@ -147,7 +153,10 @@ impl Serving {
     fn checkpoint_if_due(&mut self) {
         if let Some(j) = self.journal.as_mut() {
             j.poll(false);
-            if j.checkpoint_due() && self.host.pending_steps == 0 && self.deferred.is_empty() {
+            if j.checkpoint_due()
+                && self.host.stepping.pending_steps == 0
+                && self.deferred.is_empty()
+            {
                 j.checkpoint(&self.host, &self.answered, &self.opts.world, &self.opts);
             }
         }

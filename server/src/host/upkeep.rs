@@ -63,12 +63,12 @@ impl Upkeep {
 pub(super) fn health(host: &Hosted, inbox: &Inbox, outbox: &Outbox) -> Health {
     let load = |a: &std::sync::atomic::AtomicU64| a.load(Ordering::Relaxed);
     Health {
-        overruns: u64::from(host.overruns),
+        overruns: u64::from(host.stepping.overruns),
         rate_limited: load(&inbox.turned.rate_limited),
         queue_full: load(&inbox.turned.queue_full),
-        refused: host.health.refused + load(&inbox.turned.too_large),
+        refused: host.accounts.health.refused + load(&inbox.turned.too_large),
         unsent: load(&outbox.unsent) + load(&inbox.turned.queries_dropped),
-        ..host.health.clone()
+        ..host.accounts.health.clone()
     }
 }
 

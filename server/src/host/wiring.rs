@@ -107,6 +107,7 @@ impl Wiring {
         };
         // One publisher per frame stream (streams.rs), in the streams' order.
         let mut publishers = host
+            .wire
             .streams
             .streams
             .iter()
@@ -156,7 +157,7 @@ impl Wiring {
             (keys.snapshot.clone(), Ask::Snapshot),
             (keys.info.clone(), Ask::Info),
         ];
-        for s in &host.streams.streams {
+        for s in &host.wire.streams.streams {
             asks.push((keys.state_every(s.every), Ask::State(s.every)));
         }
         let queries = asks

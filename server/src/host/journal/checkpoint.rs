@@ -148,8 +148,12 @@ impl Journal {
             .unwrap_or_else(|| "journal".into());
         let file = format!("{stem}.{frame}.checkpoint");
         let copy = host.world.clone();
-        let (scene_name, scene_text) = (host.scene_name.clone(), host.scene_text.clone());
-        let (paused, steps_run, generation) = (host.paused, host.steps_run, host.generation);
+        let (scene_name, scene_text) = (host.source.name.clone(), host.source.text.clone());
+        let (paused, steps_run, generation) = (
+            host.stepping.paused,
+            host.stepping.steps_run,
+            host.wire.generation,
+        );
         let accuracy = host.accuracy.clone();
         let answers = answered.export(Instant::now());
         let writing = std::thread::Builder::new()
@@ -355,9 +359,9 @@ pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) ->
         );
     }
     let mut host = Hosted::with_world(world, state.scene_text, state.scene_name, opts);
-    host.paused = state.paused;
-    host.steps_run = state.steps_run;
-    host.generation = state.generation;
+    host.stepping.paused = state.paused;
+    host.stepping.steps_run = state.steps_run;
+    host.wire.generation = state.generation;
     host.accuracy = state.accuracy;
     Ok(Restored {
         host,
@@ -432,7 +436,7 @@ mod tests {
                 answered.remember(sender.clone(), id, Answer::new(&handled.reply, 0));
             }
             host.advance();
-            journal.stepped(host.world.frame(), f64::from(host.last_step_ms));
+            journal.stepped(host.world.frame(), f64::from(host.stepping.last_step_ms));
             if journal.checkpoint_due() {
                 journal.checkpoint(&host, &answered, "journaled", opts);
                 taken += 1;
@@ -493,7 +497,7 @@ mod tests {
         );
         assert_eq!(resumed.host.world.frame(), host.world.frame());
         assert_eq!(bits(&resumed.host.world), bits(&host.world));
-        assert_eq!(resumed.host.steps_run, host.steps_run);
+        assert_eq!(resumed.host.stepping.steps_run, host.stepping.steps_run);
         // And on: the same steps give the same bits.
         for _ in 0..120 {
             host.advance();

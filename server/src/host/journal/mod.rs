@@ -96,8 +96,8 @@ impl Header {
             journal: VERSION,
             world: world.to_string(),
             scene: SceneText {
-                name: host.scene_name.clone(),
-                text: host.scene_text.clone(),
+                name: host.source.name.clone(),
+                text: host.source.text.clone(),
             },
             overrides: opts.overrides.clone(),
             limits: toml::to_string(&opts.limits).expect("limits serialise"),

@@ -209,7 +209,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                         host.world.frame()
                     );
                 }
-                running.retain(|&(_, due)| due > host.steps_run);
+                running.retain(|&(_, due)| due > host.stepping.steps_run);
                 if frame % mark_every == 0 {
                     // The lines after this one act at this frame's boundary or later.
                     while marks.len() >= 2 && marks[1].0 + window <= frame {
@@ -238,7 +238,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                             handled.reply.error.unwrap_or_default()
                         );
                     }
-                    if id.is_some() && handled.due_at_step > host.steps_run {
+                    if id.is_some() && handled.due_at_step > host.stepping.steps_run {
                         running.push((n, handled.due_at_step));
                     }
                 }
@@ -352,7 +352,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         answered.remember_at(sender, id, answer, now.checked_sub(age).unwrap_or(now));
     }
     // What the server counts from here is what it does live, not the replay.
-    host.health = Default::default();
+    host.accounts.health = Default::default();
     // Go on appending, after a line cut short if there is one.
     let file = OpenOptions::new()
         .append(true)

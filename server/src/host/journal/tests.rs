@@ -286,7 +286,7 @@ fn a_resume_remembers_the_ids_of_its_last_seconds_as_old_as_they_were() {
     }
     drop(journal);
     let resumed = resume(&path, &options()).unwrap();
-    assert_eq!(resumed.host.steps_run, host.steps_run);
+    assert_eq!(resumed.host.stepping.steps_run, host.stepping.steps_run);
     let answered = &resumed.answered;
     assert!(
         answered.get(&sender, "old").is_none(),
@@ -296,7 +296,7 @@ fn a_resume_remembers_the_ids_of_its_last_seconds_as_old_as_they_were() {
     assert_eq!(new.due_at_step, 0);
     assert!(answered.get(&None, "new").is_none(), "per sender");
     let steps = answered.get(&sender, "steps").expect("remembered");
-    assert!(step_due > resumed.host.steps_run);
+    assert!(step_due > resumed.host.stepping.steps_run);
     assert_eq!(
         steps.due_at_step, step_due,
         "still running: due when its steps have run"
