@@ -52,7 +52,7 @@ impl World {
     /// The pairs the last [`World::broad_phase`] found.
     pub(super) fn found_pairs(&self) -> Box<dyn Iterator<Item = (u32, u32)> + '_> {
         if self.config.broad_phase == BroadPhase::Grid {
-            Box::new(self.pair_set.pairs.iter().map(|p| (p.a, p.b)))
+            Box::new(self.contacts.pairs.iter().map(|p| (p.a, p.b)))
         } else {
             Box::new(self.pairs.iter().copied())
         }
@@ -129,6 +129,7 @@ impl World {
     pub(super) fn update_pair_set(&mut self, dt: f64) {
         let resolving = self.resolving();
         self.pair_set.update(
+            &mut self.contacts,
             &self.bodies,
             self.layout_revision,
             &resolving,
@@ -149,7 +150,7 @@ impl World {
         self.update_pair_set(dt);
         out.clear();
         let bodies = &self.bodies;
-        for p in &self.pair_set.pairs {
+        for p in &self.contacts.pairs {
             let (ga, gb) = (bodies[p.a as usize].group, bodies[p.b as usize].group);
             if (ga, gb) == (a, b) {
                 out.push((p.a, p.b));

@@ -21,8 +21,8 @@ use crate::behavior::Behavior;
 use crate::dynamics::body::{Body, BodyKey, GroupId};
 use crate::dynamics::broad_phase::{StaticGrid, SweepBuffers};
 use crate::dynamics::config::WorldConfig;
-use crate::dynamics::impulse::{ContactCache, SolverBuffers};
-use crate::dynamics::pairs::{Pair, PairSet};
+use crate::dynamics::impulse::SolverBuffers;
+use crate::dynamics::pairs::{Contacts, Pair, PairSet};
 use crate::particles::{Emitter, Particles, PresetLibrary};
 
 mod actions;
@@ -171,10 +171,11 @@ pub struct World {
     behaving: Vec<u32>,
     /// Bodies flagged collided in the last step, to clear at the next.
     flagged: Vec<u32>,
-    contact_cache: ContactCache,
-    /// The persistent pairs of the grid broad phase.
+    /// The solver's pairs and their warm starts, whatever the broad phase.
+    contacts: Contacts,
+    /// The grid broad phase's fat boxes, which keep `contacts` from step to step.
     pair_set: PairSet,
-    /// Pairs handed to the impulse solver by the other broad phases.
+    /// Last step's pairs while the other broad phases refill `contacts`.
     #[serde(skip)]
     solver_pairs: Vec<Pair>,
     solver_buffers: SolverBuffers,
@@ -225,7 +226,7 @@ impl World {
             behaving: Vec::new(),
             flagged: Vec::new(),
             last_energy: None,
-            contact_cache: ContactCache::default(),
+            contacts: Contacts::default(),
             pair_set: PairSet::default(),
             solver_pairs: Vec::new(),
             solver_buffers: SolverBuffers::default(),

@@ -325,30 +325,20 @@ impl World {
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
         };
-        let grid = config.broad_phase == BroadPhase::Grid;
-        let mut pairs = if grid {
-            std::mem::take(&mut self.pair_set.pairs)
-        } else {
-            let mut pairs = std::mem::take(&mut self.solver_pairs);
-            self.contact_cache.pairs(&self.bodies, &mut all, &mut pairs);
-            pairs
-        };
+        if config.broad_phase != BroadPhase::Grid {
+            self.contacts.refill(&mut all, &mut self.solver_pairs);
+            self.pair_set.forget();
+        }
         let config = &self.config;
         let report = impulse::solve_frame(
             &mut self.bodies,
-            &mut pairs,
+            &mut self.contacts.pairs,
             params,
             &mut self.solver_buffers,
             &self.movers,
             |b| integrate::acceleration(b, config),
             &mut self.flagged,
         );
-        if grid {
-            self.pair_set.pairs = pairs;
-        } else {
-            self.contact_cache.store(&self.bodies, &pairs);
-            self.solver_pairs = pairs;
-        }
         stats.contacts += report.contacts;
         stats.relaxation_iterations += report.passes;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
