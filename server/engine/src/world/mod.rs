@@ -149,22 +149,8 @@ pub struct World {
     selected: Option<BodyKey>,
     stats: StepStats,
     statics_revision: u64,
-    // Scratch space of the broad phase and the impulse solver, kept between steps.
-    #[serde(skip)]
-    sweep: SweepBuffers,
-    /// Per group: the layout revision it was last looked at for, and its static grid if
-    /// it is all static and large.
-    #[serde(skip)]
-    static_grids: Vec<(u64, Option<StaticGrid>)>,
     /// Changes whenever bodies are added or removed or a static body is moved.
     layout_revision: u64,
-    #[serde(skip)]
-    pairs: Vec<(u32, u32)>,
-    #[serde(skip)]
-    sweep_out: Vec<(u32, u32)>,
-    /// Each moving body's place at the start of the step (kept only with sleeping on).
-    #[serde(skip)]
-    step_start: Vec<(u32, glam::DVec2)>,
     /// Indices of the dynamic bodies, and of the bodies with a behaviour: what a step
     /// walks, so static bodies cost nothing unless something touches them.
     movers: Vec<u32>,
@@ -175,9 +161,8 @@ pub struct World {
     contacts: Contacts,
     /// The grid broad phase's fat boxes, which keep `contacts` from step to step.
     pair_set: PairSet,
-    /// Last step's pairs while the other broad phases refill `contacts`.
-    #[serde(skip)]
-    solver_pairs: Vec<Pair>,
+    /// The impulse solver's blocks (state: when they are cut again depends on the frames
+    /// since the last cut) and its buffers (scratch, left out of checkpoints).
     solver_buffers: SolverBuffers,
     /// Where each body is in `bodies`, by id and by key: O(1) handles, rebuilt when
     /// bodies are removed (which moves the ones after them).
@@ -187,6 +172,28 @@ pub struct World {
     sleeping: u64,
     /// The mechanical energy after the last step (`None` before the first).
     last_energy: Option<f64>,
+    #[serde(skip)]
+    scratch: Scratch,
+}
+
+/// What a step fills and reads again, kept between steps only to spare allocations or as
+/// caches rebuilt on demand: not state, left out of checkpoints (a restored world
+/// rebuilds it and continues with the same bits).
+#[derive(Clone, Debug, Default)]
+struct Scratch {
+    /// The sweep and prune's buffers.
+    sweep: SweepBuffers,
+    /// Per group: the layout revision it was last looked at for, and its static grid if
+    /// it is all static and large.
+    static_grids: Vec<(u64, Option<StaticGrid>)>,
+    /// The candidate pairs the last [`World::broad_phase`] found (sweep and all pairs).
+    candidates: Vec<(u32, u32)>,
+    /// One interaction's candidate pairs.
+    interaction_pairs: Vec<(u32, u32)>,
+    /// Last step's contacts while sweep or all pairs refill [`World::contacts`].
+    last_contacts: Vec<Pair>,
+    /// Each moving body's place at the start of the step (kept only with sleeping on).
+    step_start: Vec<(u32, glam::DVec2)>,
 }
 
 impl World {
@@ -216,23 +223,18 @@ impl World {
             selected: None,
             stats: StepStats::default(),
             statics_revision: 0,
-            sweep: SweepBuffers::default(),
-            static_grids: Vec::new(),
             layout_revision: 1,
-            pairs: Vec::new(),
-            sweep_out: Vec::new(),
-            step_start: Vec::new(),
             movers: Vec::new(),
             behaving: Vec::new(),
             flagged: Vec::new(),
             last_energy: None,
             contacts: Contacts::default(),
             pair_set: PairSet::default(),
-            solver_pairs: Vec::new(),
             solver_buffers: SolverBuffers::default(),
             by_id: Default::default(),
             by_key: Default::default(),
             sleeping: 0,
+            scratch: Scratch::default(),
         }
     }
 

@@ -42,8 +42,9 @@ impl World {
         }
         if self.config.sleeping {
             let bodies = &self.bodies;
-            self.step_start.clear();
-            self.step_start
+            self.scratch.step_start.clear();
+            self.scratch
+                .step_start
                 .extend(self.movers.iter().map(|&i| (i, bodies[i as usize].pos)));
         }
         self.run_behaviors();
@@ -143,7 +144,7 @@ impl World {
             &self.movers,
             may_sleep,
             &pairs,
-            &self.step_start,
+            &self.scratch.step_start,
             dt,
             speed,
             delay,
@@ -207,10 +208,10 @@ impl World {
                         relaxation::relax(&mut self.bodies, ga, gb, params)
                     }
                     BroadPhase::Sweep | BroadPhase::Grid => {
-                        let mut pairs = std::mem::take(&mut self.pairs);
+                        let mut pairs = std::mem::take(&mut self.scratch.candidates);
                         self.candidates(a, b, dt, &mut pairs);
                         let report = relaxation::relax_pairs(&mut self.bodies, &pairs, params);
-                        self.pairs = pairs;
+                        self.scratch.candidates = pairs;
                         report
                     }
                 }
@@ -305,7 +306,7 @@ impl World {
             }
         }
         self.broad_phase(h);
-        let mut all = std::mem::take(&mut self.pairs);
+        let mut all = std::mem::take(&mut self.scratch.candidates);
         let config = &self.config;
         let params = ImpulseParams {
             iterations: config.impulse_iterations_at(self.frame),
@@ -326,7 +327,8 @@ impl World {
                 .flatten(),
         };
         if config.broad_phase != BroadPhase::Grid {
-            self.contacts.refill(&mut all, &mut self.solver_pairs);
+            self.contacts
+                .refill(&mut all, &mut self.scratch.last_contacts);
             self.pair_set.forget();
         }
         let config = &self.config;
@@ -343,7 +345,7 @@ impl World {
         stats.relaxation_iterations += report.passes;
         stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
         stats.residual = stats.residual.max(report.residual);
-        self.pairs = all;
+        self.scratch.candidates = all;
     }
 
     /// Runs `n` steps.
