@@ -1,17 +1,20 @@
 //! The world: bodies in groups, particles, emitters, the declared interactions, one
 //! seeded random generator, and the step that ties them together.
 //!
-//! A step runs in the chapter's order: move every body (demo behaviours, then
-//! integration), then every particle (removing the expired, then emitting), then the
-//! declared interactions in their order, each rigid pair of groups with its own
-//! relaxation loop and each particle pair by projection. Nothing is computed for what
-//! no interaction names.
+//! A step is one list of stages (see [`World::step`]): sleepers frozen, the game rules
+//! before the motion, the broad phase (when the solver takes all pairs at once), the
+//! rigid stage (bodies move and their contacts are resolved, the game rules after the
+//! motion at the point the solver's order puts them), particles and emitters, the
+//! particle interactions, sleeping, the energies. The solver decides what the rigid
+//! stage does inside, never the order. Nothing is computed for what no interaction names.
 //!
 //! In: scene definitions (bodies, particles, emitters, interactions) and typed actions
-//! between steps. Out: the state after each step and the step's figures ([`StepStats`]).
-//! The files split it by concept: `store` (adding and removing bodies, groups, ids),
-//! `step` (the pipeline), `candidates` (which broad phase yields a group pair's
-//! candidates), `demo` (the chapter demo's behaviours), `actions` (what clients do).
+//! between steps. Out: the state after each step, the step's figures ([`StepStats`]) and
+//! what its stages took ([`StepProfile`]). The files split it by concept: `store` (adding
+//! and removing bodies, groups, ids), `step` (the stages), `candidates` (which broad phase
+//! yields a group pair's candidates), `demo` (the chapter demo's game rules, at the
+//! step's hook points), `actions` (what clients do), `checkpoint` (the state as bytes),
+//! `profile` (the stages' wall-clock times).
 
 use crate::geometry::grid::KeyMap;
 use rand::SeedableRng;
@@ -30,11 +33,13 @@ mod candidates;
 mod checkpoint;
 mod demo;
 mod limits;
+mod profile;
 mod step;
 mod store;
 
 pub use checkpoint::{CheckpointError, CHECKPOINT_VERSION};
 pub use limits::{short, LimitError, Limits, REAL_TIME_STEP_WORK};
+pub use profile::StepProfile;
 
 /// Particle interactions with at least this many shapes bin them in a grid.
 pub const PARTICLE_GRID_MIN_SHAPES: usize = 8;
@@ -174,6 +179,10 @@ pub struct World {
     last_energy: Option<f64>,
     #[serde(skip)]
     scratch: Scratch,
+    /// What the last step's stages took by the wall clock (not state: measured, never
+    /// read by the simulation).
+    #[serde(skip)]
+    profile: StepProfile,
 }
 
 /// What a step fills and reads again, kept between steps only to spare allocations or as
@@ -235,6 +244,7 @@ impl World {
             by_key: Default::default(),
             sleeping: 0,
             scratch: Scratch::default(),
+            profile: StepProfile::default(),
         }
     }
 
@@ -300,6 +310,11 @@ impl World {
     /// The figures of the last step.
     pub fn stats(&self) -> StepStats {
         self.stats
+    }
+
+    /// What each stage of the last step took by the wall clock.
+    pub fn profile(&self) -> &StepProfile {
+        &self.profile
     }
 
     pub fn body(&self, id: &str) -> Option<&Body> {
