@@ -297,16 +297,12 @@ pub fn solve_frame(
             DVec2::ZERO
         }
     };
-    // One block has nothing to split: the frame stays on the calling thread (no helper
-    // for a small world that asked for threads). Otherwise the world keeps a crew of
-    // threads (see [`team`]), which finds the contacts and runs every pass, each split
-    // among threads already running, when there is a split's worth of work
-    // (`parallel::MIN_SPLIT`): the contact search when there are as many candidate pairs
-    // and the last frame had as many contacts, the passes when this frame has. Less work
-    // stays on the calling thread, its passes shorter than what the hand-over costs (the
-    // suite's rain, 12 000 candidate pairs and 1 200 contacts, ran at 0.76 of one
-    // thread's speed on two when its candidate pairs alone decided). The crew is kept
-    // either way: starting threads again costs more than a frame.
+    // One block has nothing to split: the frame stays on the calling thread. Otherwise
+    // the world's crew of threads (see [`team`]) takes the contact search when there are
+    // `parallel::MIN_SPLIT` candidate pairs and last frame's contacts, the passes when
+    // this frame has as many contacts: below that the hand-over costs more than the work
+    // (docs/bench/engine-notes.md). The crew is kept: starting threads costs more than a
+    // frame.
     let members = match blocks::block_count(movers.len()) {
         1 => 1,
         blocks => crate::parallel::effective(params.threads).min(blocks),
