@@ -124,18 +124,23 @@ impl World {
 
     /// The group pairs of the resolving interactions between groups.
     pub(super) fn resolving(&self) -> Vec<(GroupId, GroupId)> {
+        self.resolving_pairs().collect()
+    }
+
+    fn resolving_pairs(&self) -> impl Iterator<Item = (GroupId, GroupId)> + '_ {
         self.interactions
             .iter()
             .filter_map(|it| match (it.a, it.b, it.resolve) {
                 (Side::Group(a), Side::Group(b), true) => Some((a, b)),
                 _ => None,
             })
-            .collect()
     }
 
     /// Brings the grid broad phase's persistent pairs up to date.
     pub(super) fn update_pair_set(&mut self, dt: f64) {
-        let resolving = self.resolving();
+        let mut resolving = std::mem::take(&mut self.scratch.resolving);
+        resolving.clear();
+        resolving.extend(self.resolving_pairs());
         self.pair_set.update(
             &mut self.contacts,
             &self.bodies,
@@ -144,6 +149,7 @@ impl World {
             &self.movers,
             dt,
         );
+        self.scratch.resolving = resolving;
     }
 
     /// Candidate pairs of the interaction between groups `a` and `b` from the grid broad

@@ -199,6 +199,8 @@ struct Scratch {
     candidates: Vec<(u32, u32)>,
     /// One interaction's candidate pairs.
     interaction_pairs: Vec<(u32, u32)>,
+    /// The group pairs of the resolving interactions, for the grid.
+    resolving: Vec<(GroupId, GroupId)>,
     /// Last step's contacts while sweep or all pairs refill [`World::contacts`].
     last_contacts: Vec<Pair>,
     /// Each moving body's place at the start of the step (kept only with sleeping on).
