@@ -230,7 +230,7 @@ impl World {
 
     /// With `ccd`, stops fast bodies at the first shape of their interactions they would
     /// have passed through this step.
-    pub(super) fn sweep_fast_bodies(&mut self, dt: f64) {
+    fn sweep_fast_bodies(&mut self, dt: f64) {
         if !self.config.ccd {
             return;
         }
@@ -276,7 +276,7 @@ impl World {
     }
 
     /// Moves every particle, removing the expired, then emits.
-    pub(super) fn move_particles(&mut self) {
+    fn move_particles(&mut self) {
         if !self.particles.is_empty() {
             self.particles
                 .update_on(self.config.dt as f32, self.config.threads);
@@ -286,7 +286,7 @@ impl World {
 
     /// The rigid interactions in declaration order, each by the chapter's relaxation over
     /// `dt` (or only flagged, when it does not resolve).
-    pub(super) fn relax_interactions(&mut self, stats: &mut StepStats, dt: f64) {
+    fn relax_interactions(&mut self, stats: &mut StepStats, dt: f64) {
         let params = RelaxationParams {
             iterations: self.config.relaxation_iterations,
             correction_rate: self.config.correction_rate,
@@ -468,7 +468,7 @@ impl World {
         stats.fold(report);
     }
 
-    pub(super) fn run_emitters(&mut self) {
+    fn run_emitters(&mut self) {
         if self.emitters.is_empty() {
             return;
         }
