@@ -201,7 +201,7 @@ struct Scratch {
     interaction_pairs: Vec<(u32, u32)>,
     /// The group pairs of the resolving interactions, for the grid.
     resolving: Vec<(GroupId, GroupId)>,
-    /// Last step's contacts while sweep or all pairs refill [`World::contacts`].
+    /// Last step's contacts while sweep or all pairs refill the contacts.
     last_contacts: Vec<Pair>,
     /// Each moving body's place at the start of the step (kept only with sleeping on).
     step_start: Vec<(u32, glam::DVec2)>,

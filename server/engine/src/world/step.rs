@@ -71,8 +71,9 @@ impl World {
     ///    impulse solver; the relaxation finds each interaction's pairs in the rigid
     ///    stage, after the interactions before it moved bodies);
     /// 4. the rigid stage: bodies move and their contacts are resolved, with the game
-    ///    rules after the motion at the point the solver's order puts them
-    ///    ([`World::rigid_stage`]);
+    ///    rules after the motion at the point the solver's order puts them (under the
+    ///    relaxation at one sub-step, the chapter's order, between the motion and the
+    ///    resolution; otherwise once the stage is done);
     /// 5. particles move and emitters emit (they read no body);
     /// 6. the particle interactions, against the shapes where the rigid stage left them;
     /// 7. sleeping: islands of resting bodies go to sleep;
