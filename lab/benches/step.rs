@@ -42,6 +42,8 @@ fn step(bencher: divan::Bencher, scene: &str) {
     "solver=relaxation",
     "solver=impulses",
     "broad_phase=grid",
+    "broad_phase=sweep",
+    "broad_phase=all_pairs",
 ])]
 fn pyramid_10_under(bencher: divan::Bencher, setting: &str) {
     let mut world = load("pyramid-10.toml", &["solver=impulses", setting]);

@@ -335,8 +335,12 @@ fn a_damaged_checkpoint_is_refused() {
     let mut later = bytes.clone();
     later[3] = 99;
     assert!(err(&later).contains("version 99"));
+    // Version 1 kept warm starts in two places, by broad phase: refused, by name.
+    later[3] = 1;
+    assert!(err(&later).contains("version 1;"), "{}", err(&later));
     // Valid checksum over bytes that are not a world.
-    let mut junk = b"RCK\x01".to_vec();
+    let mut junk = b"RCK".to_vec();
+    junk.push(ricochet_engine::world::CHECKPOINT_VERSION);
     junk.extend_from_slice(&crc32fast::hash(b"junk").to_le_bytes());
     junk.extend_from_slice(b"junk");
     assert!(err(&junk).contains("unreadable"));

@@ -483,3 +483,37 @@ fn the_shipped_pyramid_100_holds_within_a_hundredth_of_a_box_over_every_step() {
     let cold = worst(&["rest_load=false"]);
     assert!(cold > 0.1, "without the resting load: {cold}");
 }
+
+/// Every stage with work is timed, the laps add up to the step, idle stages read zero, and
+/// the times are no part of the state: a restored world starts with none.
+#[test]
+fn each_stage_of_a_step_is_timed_apart_from_the_state() {
+    use std::time::Duration;
+    let mut w = asset("pyramid-10.toml");
+    w.apply(&set("solver=impulses")).unwrap();
+    w.step_n(3);
+    let p = *w.profile();
+    assert!(
+        p.broad_phase > Duration::ZERO && p.rigid > Duration::ZERO,
+        "{p:?}"
+    );
+    let laps = p.sleep
+        + p.hooks
+        + p.broad_phase
+        + p.rigid
+        + p.particles_move
+        + p.particle_interactions
+        + p.energy;
+    assert_eq!(p.step, laps);
+    // No behaviours, no particles, sleeping off.
+    assert_eq!(
+        p.hooks + p.particles_move + p.particle_interactions,
+        Duration::ZERO
+    );
+    let restored = World::restore(&w.save(), w.limits().clone()).unwrap();
+    assert_eq!(*restored.profile(), Default::default());
+    // The relaxation finds its pairs inside the rigid stage.
+    w.apply(&set("solver=relaxation")).unwrap();
+    w.step();
+    assert_eq!(w.profile().broad_phase, Duration::ZERO);
+}

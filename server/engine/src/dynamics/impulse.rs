@@ -9,10 +9,10 @@
 //! push, never pull), then a Coulomb friction impulse clamped by `friction x normal
 //! impulse`. The target is the restitution bounce for an approach faster than
 //! [`RESTITUTION_SPEED`], plus a Baumgarte bias that removes `baumgarte` of the
-//! penetration beyond the slop per sub-step. Impulses are kept between steps (keyed by the
-//! pair of bodies) and applied first next step: warm starting, which lets stacks and
-//! pyramids settle in a few iterations. Positions move only by velocity, after each
-//! sub-step's solve.
+//! penetration beyond the slop per sub-step. Impulses are kept between steps (on the pair
+//! of bodies, in [`super::pairs::Contacts`]) and applied first next step: warm starting,
+//! which lets stacks and pyramids settle in a few iterations. Positions move only by
+//! velocity, after each sub-step's solve.
 //!
 //! Shapes do not rotate, so one contact per pair carries all of it.
 //!
@@ -22,7 +22,7 @@
 
 use glam::DVec2;
 
-use super::body::{Body, BodyKey};
+use super::body::Body;
 pub use super::pairs::Pair;
 
 /// The fastest the position bias pushes overlapping bodies apart, in body sizes per
@@ -169,54 +169,6 @@ impl Bias {
     }
 }
 
-/// Impulses of the last step, for warm starting, when pairs are not kept between steps
-/// (the all-pairs and sweep broad phases).
-#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
-pub struct ContactCache {
-    impulses: KeyMap<(BodyKey, BodyKey), (DVec2, f64, f64)>,
-}
-
-impl ContactCache {
-    pub fn clear(&mut self) {
-        self.impulses.clear();
-    }
-
-    /// Pairs for `candidates` (a pair listed in both orders counts once) with last
-    /// step's impulses.
-    pub fn pairs(&self, bodies: &[Body], candidates: &mut Vec<(u32, u32)>, out: &mut Vec<Pair>) {
-        for p in candidates.iter_mut() {
-            if p.0 > p.1 {
-                *p = (p.1, p.0);
-            }
-        }
-        candidates.sort_unstable();
-        candidates.dedup();
-        out.clear();
-        out.extend(candidates.iter().map(|&(a, b)| {
-            let mut p = Pair::new(a, b);
-            let key = (bodies[a as usize].key, bodies[b as usize].key);
-            if let Some(&(n, jn, jt)) = self.impulses.get(&key) {
-                p.normal = n;
-                p.normal_impulse = jn;
-                p.tangent_impulse = jt;
-            }
-            p
-        }));
-    }
-
-    /// Keeps the impulses the solver left on `pairs`.
-    pub fn store(&mut self, bodies: &[Body], pairs: &[Pair]) {
-        self.impulses.clear();
-        for p in pairs {
-            if p.normal_impulse != 0.0 || p.tangent_impulse != 0.0 {
-                let key = (bodies[p.a as usize].key, bodies[p.b as usize].key);
-                self.impulses
-                    .insert(key, (p.normal, p.normal_impulse, p.tangent_impulse));
-            }
-        }
-    }
-}
-
 /// Bytes of one contact row as the velocity passes stream it (a cost model's figure: each
 /// pass reads every row and writes its impulses back).
 pub const CONTACT_ROW_BYTES: usize = std::mem::size_of::<Contact>();
@@ -345,16 +297,12 @@ pub fn solve_frame(
             DVec2::ZERO
         }
     };
-    // One block has nothing to split: the frame stays on the calling thread (no helper
-    // for a small world that asked for threads). Otherwise the world keeps a crew of
-    // threads (see [`team`]), which finds the contacts and runs every pass, each split
-    // among threads already running, when there is a split's worth of work
-    // (`parallel::MIN_SPLIT`): the contact search when there are as many candidate pairs
-    // and the last frame had as many contacts, the passes when this frame has. Less work
-    // stays on the calling thread, its passes shorter than what the hand-over costs (the
-    // suite's rain, 12 000 candidate pairs and 1 200 contacts, ran at 0.76 of one
-    // thread's speed on two when its candidate pairs alone decided). The crew is kept
-    // either way: starting threads again costs more than a frame.
+    // One block has nothing to split: the frame stays on the calling thread. Otherwise
+    // the world's crew of threads (see [`team`]) takes the contact search when there are
+    // `parallel::MIN_SPLIT` candidate pairs and last frame's contacts, the passes when
+    // this frame has as many contacts: below that the hand-over costs more than the work
+    // (docs/bench/engine-notes.md). The crew is kept: starting threads costs more than a
+    // frame.
     let members = match blocks::block_count(movers.len()) {
         1 => 1,
         blocks => crate::parallel::effective(params.threads).min(blocks),

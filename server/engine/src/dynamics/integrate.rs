@@ -49,17 +49,6 @@ pub fn integrate_bodies(bodies: &mut [Body], movers: &[u32], config: &WorldConfi
     }
 }
 
-/// The first half of a semi-implicit step, for the impulse solver: `v += a dt`.
-pub fn integrate_velocities(bodies: &mut [Body], movers: &[u32], config: &WorldConfig, dt: f64) {
-    for &i in movers {
-        let body = &mut bodies[i as usize];
-        if body.is_static() {
-            continue;
-        }
-        body.vel += acceleration(body, config) * dt;
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

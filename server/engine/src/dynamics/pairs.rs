@@ -12,8 +12,9 @@
 //! rebuilds the set.
 //!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
-//! is deterministic. Each pair carries the impulses the solver left on it last step (warm
-//! starting without a lookup).
+//! is deterministic. They live in [`Contacts`], the one home of the solver's pairs and
+//! their warm starts whatever the broad phase: the grid keeps them up to date in place,
+//! the other broad phases refill them each step ([`Contacts::refill`]).
 
 use glam::DVec2;
 
@@ -45,6 +46,63 @@ impl Pair {
     }
 }
 
+/// The candidate pairs the solver works through, each carrying the impulses the solver
+/// left on it last step (warm starting without a lookup): kept from step to step
+/// whichever broad phase found them, sorted by `(a, b)`, renumbered when bodies are
+/// removed.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct Contacts {
+    pub pairs: Vec<Pair>,
+}
+
+impl Contacts {
+    /// Replaces the pairs by `candidates` (either way round, repeats allowed: each pair
+    /// counts once); a pair kept from last step keeps its impulses if it had any.
+    /// `kept` is scratch space.
+    pub fn refill(&mut self, candidates: &mut Vec<(u32, u32)>, kept: &mut Vec<Pair>) {
+        for p in candidates.iter_mut() {
+            if p.0 > p.1 {
+                *p = (p.1, p.0);
+            }
+        }
+        candidates.sort_unstable();
+        candidates.dedup();
+        std::mem::swap(&mut self.pairs, kept);
+        self.pairs.clear();
+        // Both lists are sorted: one walk matches them.
+        let mut last = kept.iter().peekable();
+        self.pairs.extend(candidates.iter().map(|&(a, b)| {
+            let mut p = Pair::new(a, b);
+            while last.next_if(|o| (o.a, o.b) < (a, b)).is_some() {}
+            if let Some(o) = last.next_if(|o| (o.a, o.b) == (a, b)) {
+                if o.normal_impulse != 0.0 || o.tangent_impulse != 0.0 {
+                    p.normal = o.normal;
+                    p.normal_impulse = o.normal_impulse;
+                    p.tangent_impulse = o.tangent_impulse;
+                }
+            }
+            p
+        }));
+    }
+
+    /// Drops the pairs of the bodies `removed` marks and renumbers the others as the
+    /// bodies left close up (in order).
+    pub fn remove_bodies(&mut self, removed: &[bool]) {
+        let mut index = Vec::with_capacity(removed.len());
+        let mut next = 0u32;
+        for &r in removed {
+            index.push(next);
+            next += u32::from(!r);
+        }
+        self.pairs
+            .retain(|p| !removed[p.a as usize] && !removed[p.b as usize]);
+        for p in &mut self.pairs {
+            p.a = index[p.a as usize];
+            p.b = index[p.b as usize];
+        }
+    }
+}
+
 /// Where a body sits in the grid: `None` when it is in no resolving interaction.
 type Place = Option<Cells>;
 
@@ -53,14 +111,13 @@ struct Fat {
     min: DVec2,
     max: DVec2,
     place: Place,
-    /// The body's key (impulses survive a rebuild through it).
-    key: u32,
 }
 
 /// A body's box may cover at most this many cells; larger ones are kept aside.
 const MAX_CELLS: i64 = 64;
 
-/// The persistent candidate pairs of every resolving interaction.
+/// The grid that keeps the candidate pairs of every resolving interaction (in
+/// [`Contacts`]) from step to step.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PairSet {
     /// The world layout revision the set was built for.
@@ -70,8 +127,6 @@ pub struct PairSet {
     /// Which group pairs resolve (row-major, `groups x groups`).
     resolves: Vec<bool>,
     groups: usize,
-    /// The candidate pairs, sorted by `(a, b)`.
-    pub pairs: Vec<Pair>,
     moved: Vec<u32>,
     /// New pairs found by a search, as `a << 32 | b` (sorted, they are in pair order).
     found: Vec<u64>,
@@ -103,19 +158,22 @@ fn overlap(p: &Fat, q: &Fat) -> bool {
 }
 
 impl PairSet {
-    /// Brings the pairs up to date for a step of `dt`. `revision` is the world's layout
-    /// revision (a new one rebuilds everything), `resolving` the group pairs of the
-    /// resolving interactions, `movers` the bodies that may have moved since last time.
+    /// Brings the pairs in `contacts` up to date for a step of `dt`. `revision` is the
+    /// world's layout revision (a new one rebuilds everything), `resolving` the group
+    /// pairs of the resolving interactions, `movers` the bodies that may have moved since
+    /// last time.
     pub fn update(
         &mut self,
+        contacts: &mut Contacts,
         bodies: &[Body],
         revision: u64,
         resolving: &[(GroupId, GroupId)],
         movers: &[u32],
         dt: f64,
     ) {
+        let pairs = &mut contacts.pairs;
         if self.revision != Some(revision) || self.fat.len() != bodies.len() {
-            self.rebuild(bodies, revision, resolving, dt);
+            self.rebuild(pairs, bodies, revision, resolving, dt);
             return;
         }
         self.moved.clear();
@@ -143,8 +201,7 @@ impl PairSet {
         }
         self.reinserted += self.moved.len() as u64;
         let fat = &self.fat;
-        self.pairs
-            .retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
+        pairs.retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
         self.found.clear();
         let moved = std::mem::take(&mut self.moved);
         self.searching.clear();
@@ -156,23 +213,29 @@ impl PairSet {
             self.neighbours(bodies, i);
         }
         self.moved = moved;
-        self.merge_found();
+        self.merge_found(pairs);
+    }
+
+    /// Makes the next update rebuild the grid: `Contacts` were filled by another broad
+    /// phase.
+    pub fn forget(&mut self) {
+        self.revision = None;
     }
 
     fn rebuild(
         &mut self,
+        pairs: &mut Vec<Pair>,
         bodies: &[Body],
         revision: u64,
         resolving: &[(GroupId, GroupId)],
         dt: f64,
     ) {
         // Warm-starting impulses survive a rebuild, found again by the bodies' keys.
-        let old: KeyMap<(u32, u32), Pair> = self
-            .pairs
+        let old: KeyMap<(u32, u32), Pair> = pairs
             .iter()
             .filter(|p| p.normal_impulse != 0.0 || p.tangent_impulse != 0.0)
             .map(|p| {
-                let (ka, kb) = (self.fat[p.a as usize].key, self.fat[p.b as usize].key);
+                let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
                 ((ka.min(kb), ka.max(kb)), *p)
             })
             .collect();
@@ -206,12 +269,14 @@ impl PairSet {
             .map_or(1.0, |h| (4.0 * h).max(1e-9));
         let play: Vec<bool> = bodies.iter().map(in_play).collect();
         self.fat.clear();
-        self.fat.extend(bodies.iter().map(|b| Fat {
-            min: DVec2::ZERO,
-            max: DVec2::ZERO,
-            place: None,
-            key: b.key.0,
-        }));
+        self.fat.resize(
+            bodies.len(),
+            Fat {
+                min: DVec2::ZERO,
+                max: DVec2::ZERO,
+                place: None,
+            },
+        );
         self.grid = Grid::new(cell, MAX_CELLS);
         for (i, &p) in play.iter().enumerate() {
             if p {
@@ -226,10 +291,10 @@ impl PairSet {
                 self.neighbours(bodies, i as u32);
             }
         }
-        self.pairs.clear();
-        self.merge_found();
+        pairs.clear();
+        self.merge_found(pairs);
         if !old.is_empty() {
-            for p in &mut self.pairs {
+            for p in pairs.iter_mut() {
                 let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
                 if let Some(o) = old.get(&(ka.min(kb), ka.max(kb))) {
                     p.normal = o.normal;
@@ -252,12 +317,7 @@ impl PairSet {
         };
         let (min, max) = (min - m, max + m);
         let place = Some(self.grid.insert(i, min, max));
-        self.fat[i as usize] = Fat {
-            min,
-            max,
-            place,
-            key: body.key.0,
-        };
+        self.fat[i as usize] = Fat { min, max, place };
     }
 
     fn remove_from_cells(&mut self, i: u32) {
@@ -322,7 +382,7 @@ impl PairSet {
     }
 
     /// Adds the pairs in `found` that are not kept yet, keeping `pairs` sorted.
-    fn merge_found(&mut self) {
+    fn merge_found(&mut self, pairs: &mut Vec<Pair>) {
         if self.found.is_empty() {
             return;
         }
@@ -331,7 +391,7 @@ impl PairSet {
         self.merged.clear();
         let split = |k: u64| ((k >> 32) as u32, k as u32);
         let mut new = self.found.iter().map(|&k| split(k)).peekable();
-        for p in &self.pairs {
+        for p in pairs.iter() {
             while let Some(&(a, b)) = new.peek() {
                 if (a, b) < (p.a, p.b) {
                     self.merged.push(Pair::new(a, b));
@@ -346,7 +406,7 @@ impl PairSet {
             self.merged.push(*p);
         }
         self.merged.extend(new.map(|(a, b)| Pair::new(a, b)));
-        std::mem::swap(&mut self.pairs, &mut self.merged);
+        std::mem::swap(pairs, &mut self.merged);
     }
 }
 
@@ -405,19 +465,19 @@ mod tests {
             let movers: Vec<u32> = (0..bodies.len() as u32)
                 .filter(|&i| !bodies[i as usize].is_static())
                 .collect();
-            let mut set = PairSet::default();
+            let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
             let dt = 1.0 / 60.0;
-            set.update(&bodies, 1, &resolving, &movers, dt);
+            set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
             for (k, dx, dy) in moves {
                 if let Some(&i) = movers.get(k % movers.len().max(1)) {
                     let b = &mut bodies[i as usize];
                     b.vel = DVec2::new(dx, dy) * 30.0;
                     b.pos += DVec2::new(dx, dy);
                 }
-                set.update(&bodies, 1, &resolving, &movers, dt);
-                let kept: Vec<(u32, u32)> = set.pairs.iter().map(|p| (p.a, p.b)).collect();
+                set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+                let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
                 prop_assert!(kept.windows(2).all(|w| w[0] < w[1]), "sorted, unique");
-                for p in &set.pairs {
+                for p in &contacts.pairs {
                     let (a, b) = (&bodies[p.a as usize], &bodies[p.b as usize]);
                     prop_assert!(!(a.is_static() && b.is_static()));
                     prop_assert!(a.group != 2 && b.group != 2);
@@ -437,23 +497,24 @@ mod tests {
         bodies.push(body(10, 0.0, -1.0, 100.0, 2.0, 0.0, 0));
         let movers: Vec<u32> = (0..10).collect();
         let resolving = [(0, 1), (1, 1)];
-        let mut set = PairSet::default();
-        set.update(&bodies, 1, &resolving, &movers, 1.0 / 60.0);
+        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+        set.update(&mut contacts, &bodies, 1, &resolving, &movers, 1.0 / 60.0);
         // Nine box-on-box contacts and the bottom box on the floor.
-        let kept: Vec<(u32, u32)> = set.pairs.iter().map(|p| (p.a, p.b)).collect();
+        let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
         assert!(
             kept.contains(&(0, 10)) && kept.contains(&(8, 9)),
             "{kept:?}"
         );
         for _ in 0..100 {
-            set.update(&bodies, 1, &resolving, &movers, 1.0 / 60.0);
+            set.update(&mut contacts, &bodies, 1, &resolving, &movers, 1.0 / 60.0);
         }
         assert_eq!(set.reinserted, 0);
         // A new layout (a body removed in front) keeps the impulses by body key.
-        set.pairs
+        contacts
+            .pairs
             .iter_mut()
             .for_each(|p| p.normal_impulse = (p.a * 100 + p.b) as f64);
-        let before: Vec<(u32, u32, f64)> = set
+        let before: Vec<(u32, u32, f64)> = contacts
             .pairs
             .iter()
             .map(|p| {
@@ -465,19 +526,60 @@ mod tests {
             })
             .collect();
         bodies.remove(5);
+        let mut removed = vec![false; 11];
+        removed[5] = true;
+        contacts.remove_bodies(&removed);
         set.update(
+            &mut contacts,
             &bodies,
             2,
             &resolving,
             &(0..9).collect::<Vec<_>>(),
             1.0 / 60.0,
         );
-        for p in &set.pairs {
+        for p in &contacts.pairs {
             let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
             if let Some(&(_, _, j)) = before.iter().find(|&&(a, b, _)| (a, b) == (ka, kb)) {
                 assert_eq!(p.normal_impulse, j);
             }
         }
-        assert!(set.pairs.iter().any(|p| p.normal_impulse > 0.0));
+        assert!(contacts.pairs.iter().any(|p| p.normal_impulse > 0.0));
+    }
+
+    #[test]
+    fn a_refill_keeps_the_impulses_of_the_pairs_found_again_and_removal_renumbers() {
+        let mut contacts = Contacts::default();
+        let mut kept = Vec::new();
+        contacts.refill(&mut vec![(2, 1), (0, 3), (1, 2), (3, 4)], &mut kept);
+        let found: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+        assert_eq!(found, [(0, 3), (1, 2), (3, 4)]);
+        for p in &mut contacts.pairs {
+            p.normal = DVec2::Y;
+            p.normal_impulse = (p.a * 10 + p.b) as f64;
+        }
+        // (0, 3) has no impulse left: it comes back cold, normal and all.
+        contacts.pairs[0].normal_impulse = 0.0;
+        contacts.refill(&mut vec![(4, 3), (0, 3), (2, 5), (1, 2)], &mut kept);
+        let found: Vec<(u32, u32, f64, DVec2)> = contacts
+            .pairs
+            .iter()
+            .map(|p| (p.a, p.b, p.normal_impulse, p.normal))
+            .collect();
+        assert_eq!(
+            found,
+            [
+                (0, 3, 0.0, DVec2::ZERO),
+                (1, 2, 12.0, DVec2::Y),
+                (2, 5, 0.0, DVec2::ZERO),
+                (3, 4, 34.0, DVec2::Y)
+            ]
+        );
+        contacts.remove_bodies(&[false, false, true, false, false, false]);
+        let left: Vec<(u32, u32, f64)> = contacts
+            .pairs
+            .iter()
+            .map(|p| (p.a, p.b, p.normal_impulse))
+            .collect();
+        assert_eq!(left, [(0, 2, 0.0), (2, 3, 34.0)]);
     }
 }

@@ -152,7 +152,8 @@ pub fn nearest_side(d: DVec2, half: DVec2) -> (DVec2, f64) {
 /// Signed distance between two shapes along a normal from the first toward the second:
 /// positive when apart (the gap), negative when overlapping (minus the depth). Used by the
 /// impulse solver's speculative contacts; agrees with [`collide`] when they overlap.
-#[inline]
+// Called for every candidate pair: inlined whatever codegen unit the solver lands in.
+#[inline(always)]
 pub fn separation(a: &Shape, pa: DVec2, b: &Shape, pb: DVec2) -> (f64, DVec2) {
     match (*a, *b) {
         (Shape::Rect { half: ha }, Shape::Rect { half: hb }) => {

@@ -17,17 +17,17 @@ impl World {
     /// Finds the candidate pairs of every resolving interaction between groups for a step
     /// of `dt` from where the bodies are now: with the grid, its persistent pairs brought
     /// up to date ([`World::found_pairs`] reads them); otherwise each interaction's pairs
-    /// in declaration order, into `self.pairs` (every pair of the two groups under
+    /// in declaration order, into the scratch candidates (every pair of the two groups under
     /// `all_pairs`).
     pub(super) fn broad_phase(&mut self, dt: f64) {
-        let mut all = std::mem::take(&mut self.pairs);
+        let mut all = std::mem::take(&mut self.scratch.candidates);
         all.clear();
         if self.config.broad_phase == BroadPhase::Grid {
             self.update_pair_set(dt);
-            self.pairs = all;
+            self.scratch.candidates = all;
             return;
         }
-        let mut some = std::mem::take(&mut self.sweep_out);
+        let mut some = std::mem::take(&mut self.scratch.interaction_pairs);
         for (a, b) in self.resolving() {
             let (ga, gb) = (
                 &self.groups[a as usize].members,
@@ -45,16 +45,16 @@ impl World {
                 all.extend_from_slice(&some);
             }
         }
-        self.sweep_out = some;
-        self.pairs = all;
+        self.scratch.interaction_pairs = some;
+        self.scratch.candidates = all;
     }
 
     /// The pairs the last [`World::broad_phase`] found.
     pub(super) fn found_pairs(&self) -> Box<dyn Iterator<Item = (u32, u32)> + '_> {
         if self.config.broad_phase == BroadPhase::Grid {
-            Box::new(self.pair_set.pairs.iter().map(|p| (p.a, p.b)))
+            Box::new(self.contacts.pairs.iter().map(|p| (p.a, p.b)))
         } else {
-            Box::new(self.pairs.iter().copied())
+            Box::new(self.scratch.candidates.iter().copied())
         }
     }
 
@@ -75,7 +75,7 @@ impl World {
         if a != b {
             for (fixed, moving, static_first) in [(b, a, false), (a, b, true)] {
                 if self.static_grid(fixed) {
-                    let grid = self.static_grids[fixed as usize]
+                    let grid = self.scratch.static_grids[fixed as usize]
                         .1
                         .as_ref()
                         .expect("checked above");
@@ -92,16 +92,24 @@ impl World {
             &self.groups[a as usize].members,
             &self.groups[b as usize].members,
         );
-        sweep_pairs(&self.bodies, ga, gb, a == b, dt, &mut self.sweep, out);
+        sweep_pairs(
+            &self.bodies,
+            ga,
+            gb,
+            a == b,
+            dt,
+            &mut self.scratch.sweep,
+            out,
+        );
     }
 
     /// Whether group `g` has a static grid now (building it if the layout changed).
     pub(super) fn static_grid(&mut self, g: GroupId) -> bool {
         let g = g as usize;
-        if self.static_grids.len() <= g {
-            self.static_grids.resize_with(g + 1, || (0, None));
+        if self.scratch.static_grids.len() <= g {
+            self.scratch.static_grids.resize_with(g + 1, || (0, None));
         }
-        if self.static_grids[g].0 != self.layout_revision {
+        if self.scratch.static_grids[g].0 != self.layout_revision {
             let members = &self.groups[g].members;
             let eligible = members.len() > STATIC_GRID_MIN_MEMBERS
                 && members.iter().all(|&i| {
@@ -109,32 +117,39 @@ impl World {
                 });
             let grid =
                 eligible.then(|| StaticGrid::build(&self.bodies, members, self.layout_revision));
-            self.static_grids[g] = (self.layout_revision, grid);
+            self.scratch.static_grids[g] = (self.layout_revision, grid);
         }
-        self.static_grids[g].1.is_some()
+        self.scratch.static_grids[g].1.is_some()
     }
 
     /// The group pairs of the resolving interactions between groups.
     pub(super) fn resolving(&self) -> Vec<(GroupId, GroupId)> {
+        self.resolving_pairs().collect()
+    }
+
+    fn resolving_pairs(&self) -> impl Iterator<Item = (GroupId, GroupId)> + '_ {
         self.interactions
             .iter()
             .filter_map(|it| match (it.a, it.b, it.resolve) {
                 (Side::Group(a), Side::Group(b), true) => Some((a, b)),
                 _ => None,
             })
-            .collect()
     }
 
     /// Brings the grid broad phase's persistent pairs up to date.
     pub(super) fn update_pair_set(&mut self, dt: f64) {
-        let resolving = self.resolving();
+        let mut resolving = std::mem::take(&mut self.scratch.resolving);
+        resolving.clear();
+        resolving.extend(self.resolving_pairs());
         self.pair_set.update(
+            &mut self.contacts,
             &self.bodies,
             self.layout_revision,
             &resolving,
             &self.movers,
             dt,
         );
+        self.scratch.resolving = resolving;
     }
 
     /// Candidate pairs of the interaction between groups `a` and `b` from the grid broad
@@ -149,7 +164,7 @@ impl World {
         self.update_pair_set(dt);
         out.clear();
         let bodies = &self.bodies;
-        for p in &self.pair_set.pairs {
+        for p in &self.contacts.pairs {
             let (ga, gb) = (bodies[p.a as usize].group, bodies[p.b as usize].group);
             if (ga, gb) == (a, b) {
                 out.push((p.a, p.b));

@@ -4,7 +4,7 @@
 //!
 //! A restored world continues bit for bit as the saved one would have: the bytes hold
 //! every field a step reads (bodies, particles, emitters, the random generator, the
-//! broad phase's pairs and the impulses they carry for warm starting, the solver's blocks)
+//! contacts and the impulses they carry for warm starting, the solver's blocks)
 //! and leave out only scratch space a step rebuilds. The engine's tests step every
 //! shipped scene on from a checkpoint and compare.
 //!
@@ -15,8 +15,8 @@
 use super::{Limits, World};
 
 const MAGIC: &[u8; 3] = b"RCK";
-/// The layout's version.
-pub const CHECKPOINT_VERSION: u8 = 1;
+/// The layout's version (2: one home for the contacts and their warm starts).
+pub const CHECKPOINT_VERSION: u8 = 2;
 
 /// Why bytes are not a checkpoint this engine can restore.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -1,5 +1,7 @@
-//! The chapter demo's behaviours, run by the step: the hero steered by held directions,
-//! patrolling minions, homing dye packs that explode into emitters on touching the hero.
+//! The chapter demo's game rules, which the step calls at two named points
+//! ([`HookPoint`]), as rapier calls its `PhysicsHooks`: behaviours steer the hero, the
+//! patrolling minions and the homing dye packs before the bodies move; dye packs touching
+//! the hero explode into emitters once they moved.
 
 use glam::DVec2;
 
@@ -10,7 +12,26 @@ use crate::particles::Emitter;
 
 use super::World;
 
+/// The points of a step where the game rules run (see [`World::step`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum HookPoint {
+    /// Before the bodies move: behaviours set velocities and fly dye packs; expired packs
+    /// are removed.
+    BeforeMotion,
+    /// Once the bodies moved (see [`World::rigid_stage`] for when that is) and before the
+    /// particles move: dye packs touching the hero are removed and start emitters.
+    AfterMotion,
+}
+
 impl World {
+    /// The chapter demo's rules at `point` (nothing for a world without its actors).
+    pub(super) fn game_rules(&mut self, point: HookPoint) {
+        match point {
+            HookPoint::BeforeMotion => self.run_behaviors(),
+            HookPoint::AfterMotion => self.explode_dye_packs_on_hero(),
+        }
+    }
+
     /// The first hero's index.
     pub(super) fn hero(&self) -> Option<usize> {
         self.behaving
@@ -23,7 +44,7 @@ impl World {
         self.hero().map(|i| self.bodies[i].pos)
     }
 
-    pub(super) fn run_behaviors(&mut self) {
+    fn run_behaviors(&mut self) {
         let dt = self.config.dt;
         let hero = self.hero_pos();
         let mut expired_packs = false;
@@ -66,7 +87,7 @@ impl World {
     }
 
     /// Dye packs touching the hero are removed, each starting an explosion where it was.
-    pub(super) fn explode_dye_packs_on_hero(&mut self) {
+    fn explode_dye_packs_on_hero(&mut self) {
         let Some(hero) = self.hero() else {
             return;
         };

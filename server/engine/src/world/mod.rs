@@ -1,17 +1,20 @@
 //! The world: bodies in groups, particles, emitters, the declared interactions, one
 //! seeded random generator, and the step that ties them together.
 //!
-//! A step runs in the chapter's order: move every body (demo behaviours, then
-//! integration), then every particle (removing the expired, then emitting), then the
-//! declared interactions in their order, each rigid pair of groups with its own
-//! relaxation loop and each particle pair by projection. Nothing is computed for what
-//! no interaction names.
+//! A step is one list of stages (see [`World::step`]): sleepers frozen, the game rules
+//! before the motion, the broad phase (when the solver takes all pairs at once), the
+//! rigid stage (bodies move and their contacts are resolved, the game rules after the
+//! motion at the point the solver's order puts them), particles and emitters, the
+//! particle interactions, sleeping, the energies. The solver decides what the rigid
+//! stage does inside, never the order. Nothing is computed for what no interaction names.
 //!
 //! In: scene definitions (bodies, particles, emitters, interactions) and typed actions
-//! between steps. Out: the state after each step and the step's figures ([`StepStats`]).
-//! The files split it by concept: `store` (adding and removing bodies, groups, ids),
-//! `step` (the pipeline), `candidates` (which broad phase yields a group pair's
-//! candidates), `demo` (the chapter demo's behaviours), `actions` (what clients do).
+//! between steps. Out: the state after each step, the step's figures ([`StepStats`]) and
+//! what its stages took ([`StepProfile`]). The files split it by concept: `store` (adding
+//! and removing bodies, groups, ids), `step` (the stages), `candidates` (which broad phase
+//! yields a group pair's candidates), `demo` (the chapter demo's game rules, at the
+//! step's hook points), `actions` (what clients do), `checkpoint` (the state as bytes),
+//! `profile` (the stages' wall-clock times).
 
 use crate::geometry::grid::KeyMap;
 use rand::SeedableRng;
@@ -21,8 +24,8 @@ use crate::behavior::Behavior;
 use crate::dynamics::body::{Body, BodyKey, GroupId};
 use crate::dynamics::broad_phase::{StaticGrid, SweepBuffers};
 use crate::dynamics::config::WorldConfig;
-use crate::dynamics::impulse::{ContactCache, SolverBuffers};
-use crate::dynamics::pairs::{Pair, PairSet};
+use crate::dynamics::impulse::SolverBuffers;
+use crate::dynamics::pairs::{Contacts, Pair, PairSet};
 use crate::particles::{Emitter, Particles, PresetLibrary};
 
 mod actions;
@@ -30,11 +33,13 @@ mod candidates;
 mod checkpoint;
 mod demo;
 mod limits;
+mod profile;
 mod step;
 mod store;
 
 pub use checkpoint::{CheckpointError, CHECKPOINT_VERSION};
 pub use limits::{short, LimitError, Limits, REAL_TIME_STEP_WORK};
+pub use profile::StepProfile;
 
 /// Particle interactions with at least this many shapes bin them in a grid.
 pub const PARTICLE_GRID_MIN_SHAPES: usize = 8;
@@ -149,34 +154,20 @@ pub struct World {
     selected: Option<BodyKey>,
     stats: StepStats,
     statics_revision: u64,
-    // Scratch space of the broad phase and the impulse solver, kept between steps.
-    #[serde(skip)]
-    sweep: SweepBuffers,
-    /// Per group: the layout revision it was last looked at for, and its static grid if
-    /// it is all static and large.
-    #[serde(skip)]
-    static_grids: Vec<(u64, Option<StaticGrid>)>,
     /// Changes whenever bodies are added or removed or a static body is moved.
     layout_revision: u64,
-    #[serde(skip)]
-    pairs: Vec<(u32, u32)>,
-    #[serde(skip)]
-    sweep_out: Vec<(u32, u32)>,
-    /// Each moving body's place at the start of the step (kept only with sleeping on).
-    #[serde(skip)]
-    step_start: Vec<(u32, glam::DVec2)>,
     /// Indices of the dynamic bodies, and of the bodies with a behaviour: what a step
     /// walks, so static bodies cost nothing unless something touches them.
     movers: Vec<u32>,
     behaving: Vec<u32>,
     /// Bodies flagged collided in the last step, to clear at the next.
     flagged: Vec<u32>,
-    contact_cache: ContactCache,
-    /// The persistent pairs of the grid broad phase.
+    /// The solver's pairs and their warm starts, whatever the broad phase.
+    contacts: Contacts,
+    /// The grid broad phase's fat boxes, which keep `contacts` from step to step.
     pair_set: PairSet,
-    /// Pairs handed to the impulse solver by the other broad phases.
-    #[serde(skip)]
-    solver_pairs: Vec<Pair>,
+    /// The impulse solver's blocks (state: when they are cut again depends on the frames
+    /// since the last cut) and its buffers (scratch, left out of checkpoints).
     solver_buffers: SolverBuffers,
     /// Where each body is in `bodies`, by id and by key: O(1) handles, rebuilt when
     /// bodies are removed (which moves the ones after them).
@@ -186,6 +177,34 @@ pub struct World {
     sleeping: u64,
     /// The mechanical energy after the last step (`None` before the first).
     last_energy: Option<f64>,
+    #[serde(skip)]
+    scratch: Scratch,
+    /// What the last step's stages took by the wall clock (not state: measured, never
+    /// read by the simulation).
+    #[serde(skip)]
+    profile: StepProfile,
+}
+
+/// What a step fills and reads again, kept between steps only to spare allocations or as
+/// caches rebuilt on demand: not state, left out of checkpoints (a restored world
+/// rebuilds it and continues with the same bits).
+#[derive(Clone, Debug, Default)]
+struct Scratch {
+    /// The sweep and prune's buffers.
+    sweep: SweepBuffers,
+    /// Per group: the layout revision it was last looked at for, and its static grid if
+    /// it is all static and large.
+    static_grids: Vec<(u64, Option<StaticGrid>)>,
+    /// The candidate pairs the last [`World::broad_phase`] found (sweep and all pairs).
+    candidates: Vec<(u32, u32)>,
+    /// One interaction's candidate pairs.
+    interaction_pairs: Vec<(u32, u32)>,
+    /// The group pairs of the resolving interactions, for the grid.
+    resolving: Vec<(GroupId, GroupId)>,
+    /// Last step's contacts while sweep or all pairs refill the contacts.
+    last_contacts: Vec<Pair>,
+    /// Each moving body's place at the start of the step (kept only with sleeping on).
+    step_start: Vec<(u32, glam::DVec2)>,
 }
 
 impl World {
@@ -215,23 +234,19 @@ impl World {
             selected: None,
             stats: StepStats::default(),
             statics_revision: 0,
-            sweep: SweepBuffers::default(),
-            static_grids: Vec::new(),
             layout_revision: 1,
-            pairs: Vec::new(),
-            sweep_out: Vec::new(),
-            step_start: Vec::new(),
             movers: Vec::new(),
             behaving: Vec::new(),
             flagged: Vec::new(),
             last_energy: None,
-            contact_cache: ContactCache::default(),
+            contacts: Contacts::default(),
             pair_set: PairSet::default(),
-            solver_pairs: Vec::new(),
             solver_buffers: SolverBuffers::default(),
             by_id: Default::default(),
             by_key: Default::default(),
             sleeping: 0,
+            scratch: Scratch::default(),
+            profile: StepProfile::default(),
         }
     }
 
@@ -297,6 +312,11 @@ impl World {
     /// The figures of the last step.
     pub fn stats(&self) -> StepStats {
         self.stats
+    }
+
+    /// What each stage of the last step took by the wall clock.
+    pub fn profile(&self) -> &StepProfile {
+        &self.profile
     }
 
     pub fn body(&self, id: &str) -> Option<&Body> {

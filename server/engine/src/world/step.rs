@@ -1,100 +1,237 @@
-//! The step pipeline: behaviours, integration, the rigid solver over the declared
-//! interactions, particles and emitters, sleeping, in that order (see [`World::step`]).
+//! The step: one list of named stages (see [`World::step`]), in the manner of Box2D's
+//! `b2World_Step`. The solver chosen decides what the rigid stage does inside, never the
+//! order of the stages; the chapter demo's game rules run at two named points of it
+//! ([`HookPoint`]).
 
 use crate::behavior::Behavior;
 use crate::dynamics::body::GroupId;
 use crate::dynamics::broad_phase::BroadPhase;
 use crate::dynamics::ccd;
 use crate::dynamics::config::{Integrator, Solver};
-use crate::dynamics::impulse::{self, ImpulseParams};
+use crate::dynamics::impulse::{self, ImpulseParams, ImpulseReport};
 use crate::dynamics::integrate::{self, integrate_bodies};
-use crate::dynamics::relaxation::{self, Gravity, RelaxationParams};
+use crate::dynamics::relaxation::{self, Gravity, RelaxationParams, RelaxationReport};
 use crate::dynamics::sleep;
 use crate::geometry::Shape;
 use crate::particles::system::{ParticleShape, ShapeGrid};
 
+use super::demo::HookPoint;
+use super::profile::{Laps, StepProfile};
 use super::{Side, StepStats, World, PARTICLE_GRID_MIN_SHAPES};
 
+/// What a rigid solver did, as the step's figures count it.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct SolverReport {
+    contacts: u64,
+    passes: u64,
+    deepest: f64,
+    residual: f64,
+}
+
+impl From<RelaxationReport> for SolverReport {
+    fn from(r: RelaxationReport) -> Self {
+        SolverReport {
+            contacts: r.contacts,
+            passes: r.iterations as u64,
+            deepest: r.deepest,
+            residual: r.residual,
+        }
+    }
+}
+
+impl From<ImpulseReport> for SolverReport {
+    fn from(r: ImpulseReport) -> Self {
+        SolverReport {
+            contacts: r.contacts,
+            passes: r.passes,
+            deepest: r.deepest,
+            residual: r.residual,
+        }
+    }
+}
+
+impl StepStats {
+    /// Adds what a rigid solver did to the step's figures.
+    pub(super) fn fold(&mut self, report: impl Into<SolverReport>) {
+        let r = report.into();
+        self.contacts += r.contacts;
+        self.relaxation_iterations += r.passes;
+        self.deepest_penetration = self.deepest_penetration.max(r.deepest);
+        self.residual = self.residual.max(r.residual);
+    }
+}
+
 impl World {
-    /// Advances the world by one fixed step.
+    /// Advances the world by one fixed step, stage after stage:
     ///
-    /// With the chapter's relaxation and one sub-step this is the chapter's order: move
-    /// bodies, move particles, then the rigid interactions in declaration order, then the
-    /// particle interactions in declaration order (the chapter's demos declare theirs
-    /// last). With sub-steps or the impulse solver, the rigid bodies take their sub-steps
-    /// first (move and resolve), then the particles move and meet the shapes where they
-    /// ended.
+    /// 1. sleepers are frozen (static to the solvers) and last step's collided flags
+    ///    cleared;
+    /// 2. the game rules before the motion (the demo's behaviours steer bodies);
+    /// 3. the broad phase, when the solver takes every interaction's pairs at once (the
+    ///    impulse solver; the relaxation finds each interaction's pairs in the rigid
+    ///    stage, after the interactions before it moved bodies);
+    /// 4. the rigid stage: bodies move and their contacts are resolved, with the game
+    ///    rules after the motion at the point the solver's order puts them (under the
+    ///    relaxation at one sub-step, the chapter's order, between the motion and the
+    ///    resolution; otherwise once the stage is done);
+    /// 5. particles move and emitters emit (they read no body);
+    /// 6. the particle interactions, against the shapes where the rigid stage left them;
+    /// 7. sleeping: islands of resting bodies go to sleep;
+    /// 8. the energies the step's figures report.
+    ///
+    /// Each stage's wall-clock time is kept in [`World::profile`]; nothing simulated
+    /// reads it.
     pub fn step(&mut self) {
+        let (mut laps, mut took) = (Laps::start(), StepProfile::default());
         let mut stats = StepStats::default();
-        let energy_before = match self.last_energy {
-            Some(e) => e,
-            None => self.mechanical_energy(),
-        };
+        let energy_before = self.last_energy.unwrap_or_else(|| self.mechanical_energy());
+        self.freeze_sleepers();
+        took.sleep = laps.lap_if(self.config.sleeping);
+        self.game_rules(HookPoint::BeforeMotion);
+        took.hooks = laps.lap_if(!self.behaving.is_empty());
+        self.rigid_broad_phase();
+        took.broad_phase = laps.lap_if(self.config.solver == Solver::Impulses);
+        self.rigid_stage(&mut stats);
+        took.rigid = laps.lap();
+        self.move_particles();
+        took.particles_move = laps.lap_if(!self.particles.is_empty() || !self.emitters.is_empty());
+        stats.particle_contacts = self.particle_interactions();
+        took.particle_interactions = laps.lap_if(!self.particles.is_empty());
+        stats.sleeping = self.update_sleep();
+        took.sleep += laps.lap_if(self.config.sleeping);
+        self.energy_stage(&mut stats, energy_before);
+        took.energy = laps.lap();
+        took.step = laps.total();
+        self.stats = stats;
+        self.profile = took;
+        self.frame += 1;
+    }
+
+    /// Runs `n` steps.
+    pub fn step_n(&mut self, n: u64) {
+        for _ in 0..n {
+            self.step();
+        }
+    }
+
+    /// The step's energies: kinetic and mechanical after it, and the change since the
+    /// last step (or the world's start).
+    fn energy_stage(&mut self, stats: &mut StepStats, energy_before: f64) {
+        (stats.kinetic_energy, stats.energy) = self.energies();
+        stats.energy_change = stats.energy - energy_before;
+        self.last_energy = Some(stats.energy);
+    }
+
+    /// Before the step: last step's collided flags cleared; with sleeping on, sleepers
+    /// frozen for the step and each mover's place noted (rest is judged from it after),
+    /// with it off, everyone awake.
+    fn freeze_sleepers(&mut self) {
         for &i in &self.flagged {
             self.bodies[i as usize].collided = false;
         }
         self.flagged.clear();
         if !self.config.sleeping {
             self.wake_all();
+            return;
         }
         if self.sleeping > 0 {
             sleep::freeze(&mut self.bodies, &self.movers);
         }
-        if self.config.sleeping {
-            let bodies = &self.bodies;
-            self.step_start.clear();
-            self.step_start
-                .extend(self.movers.iter().map(|&i| (i, bodies[i as usize].pos)));
-        }
-        self.run_behaviors();
-        let dt = self.config.dt;
-        let chapter_order = self.config.solver == Solver::Relaxation && self.config.substeps == 1;
-        if chapter_order {
-            integrate_bodies(&mut self.bodies, &self.movers, &self.config, dt);
-            self.sweep_fast_bodies(dt);
-            self.explode_dye_packs_on_hero();
-            self.move_particles();
-            self.relax_interactions(&mut stats, dt);
-            self.particle_interactions(&mut stats);
-        } else {
-            let n = self.config.substeps.max(1);
-            match self.config.solver {
-                Solver::Relaxation => {
-                    let h = dt / n as f64;
-                    for _ in 0..n {
-                        integrate_bodies(&mut self.bodies, &self.movers, &self.config, h);
-                        self.sweep_fast_bodies(h);
-                        self.relax_interactions(&mut stats, h);
-                    }
-                }
-                Solver::Impulses => {
-                    if self.frame == 0 && self.config.settle_iterations > 0 {
-                        self.settle_impulses(dt);
-                    }
-                    self.solve_impulses(&mut stats, dt)
-                }
-            }
-            self.explode_dye_packs_on_hero();
-            self.move_particles();
-            self.particle_interactions(&mut stats);
+        let bodies = &self.bodies;
+        self.scratch.step_start.clear();
+        self.scratch
+            .step_start
+            .extend(self.movers.iter().map(|&i| (i, bodies[i as usize].pos)));
+    }
+
+    /// After the step, with sleeping on: sleepers get their mass back, touching bodies are
+    /// joined into islands and resting islands put to sleep. Returns how many bodies
+    /// sleep.
+    fn update_sleep(&mut self) -> u64 {
+        if !self.config.sleeping {
+            return self.sleeping;
         }
         if self.sleeping > 0 {
             sleep::thaw(&mut self.bodies, &self.movers);
         }
-        if self.config.sleeping {
-            self.update_sleep();
+        let dt = self.config.dt;
+        // Where the bodies are after the step: islands join bodies touching now.
+        self.broad_phase(dt);
+        let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
+        let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
+        let infos = &self.infos;
+        let may_sleep =
+            |i: usize| matches!(infos[i].behavior, Behavior::None | Behavior::DumbMinion);
+        self.sleeping = sleep::update(
+            &mut self.bodies,
+            &self.movers,
+            may_sleep,
+            &pairs,
+            &self.scratch.step_start,
+            dt,
+            speed,
+            delay,
+        );
+        self.sleeping
+    }
+
+    /// The broad phase of a solver that takes every interaction's pairs at once (the
+    /// impulse solver): the contacts of the step, with their warm starts. On the first
+    /// frame, the resting load is settled first (it runs a frame of its own).
+    fn rigid_broad_phase(&mut self) {
+        if self.config.solver != Solver::Impulses {
+            return;
         }
-        stats.sleeping = self.sleeping;
-        (stats.kinetic_energy, stats.energy) = self.energies();
-        stats.energy_change = stats.energy - energy_before;
-        self.last_energy = Some(stats.energy);
-        self.stats = stats;
-        self.frame += 1;
+        let dt = self.config.dt;
+        if self.frame == 0 && self.config.settle_iterations > 0 {
+            self.settle_impulses(dt);
+        }
+        self.find_contacts(dt);
+    }
+
+    /// The rigid stage: bodies move and their contacts are resolved; the game rules after
+    /// the motion run once the bodies moved.
+    ///
+    /// The relaxation runs `substeps` rounds of motion (integration, then `ccd`'s sweep)
+    /// and resolution over `dt / substeps`. At one sub-step this is the chapter's order,
+    /// and the game rules see the bodies moved but not yet resolved; with sub-steps they
+    /// run after the last round. The impulse solver runs one frame of its sub-steps over
+    /// the contacts the broad phase found (motion and resolution interleaved inside),
+    /// then the game rules.
+    fn rigid_stage(&mut self, stats: &mut StepStats) {
+        let dt = self.config.dt;
+        match self.config.solver {
+            Solver::Relaxation => {
+                let n = self.config.substeps.max(1);
+                let h = dt / n as f64;
+                let chapter_order = n == 1;
+                for _ in 0..n {
+                    self.move_bodies(h);
+                    if chapter_order {
+                        self.game_rules(HookPoint::AfterMotion);
+                    }
+                    self.relax_interactions(stats, h);
+                }
+                if !chapter_order {
+                    self.game_rules(HookPoint::AfterMotion);
+                }
+            }
+            Solver::Impulses => {
+                self.solve_impulses(stats, dt);
+                self.game_rules(HookPoint::AfterMotion);
+            }
+        }
+    }
+
+    /// Integrates the moving bodies over `dt`, then stops the fast ones (`ccd`).
+    fn move_bodies(&mut self, dt: f64) {
+        integrate_bodies(&mut self.bodies, &self.movers, &self.config, dt);
+        self.sweep_fast_bodies(dt);
     }
 
     /// With `ccd`, stops fast bodies at the first shape of their interactions they would
     /// have passed through this step.
-    pub(super) fn sweep_fast_bodies(&mut self, dt: f64) {
+    fn sweep_fast_bodies(&mut self, dt: f64) {
         if !self.config.ccd {
             return;
         }
@@ -128,28 +265,6 @@ impl World {
         }
     }
 
-    /// Joins touching bodies into islands and puts resting islands to sleep.
-    pub(super) fn update_sleep(&mut self) {
-        let dt = self.config.dt;
-        // Where the bodies are after the step: islands join bodies touching now.
-        self.broad_phase(dt);
-        let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
-        let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
-        let infos = &self.infos;
-        let may_sleep =
-            |i: usize| matches!(infos[i].behavior, Behavior::None | Behavior::DumbMinion);
-        self.sleeping = sleep::update(
-            &mut self.bodies,
-            &self.movers,
-            may_sleep,
-            &pairs,
-            &self.step_start,
-            dt,
-            speed,
-            delay,
-        );
-    }
-
     /// Wakes every sleeping body.
     pub(super) fn wake_all(&mut self) {
         if self.sleeping == 0 {
@@ -162,7 +277,7 @@ impl World {
     }
 
     /// Moves every particle, removing the expired, then emits.
-    pub(super) fn move_particles(&mut self) {
+    fn move_particles(&mut self) {
         if !self.particles.is_empty() {
             self.particles
                 .update_on(self.config.dt as f32, self.config.threads);
@@ -172,7 +287,7 @@ impl World {
 
     /// The rigid interactions in declaration order, each by the chapter's relaxation over
     /// `dt` (or only flagged, when it does not resolve).
-    pub(super) fn relax_interactions(&mut self, stats: &mut StepStats, dt: f64) {
+    fn relax_interactions(&mut self, stats: &mut StepStats, dt: f64) {
         let params = RelaxationParams {
             iterations: self.config.relaxation_iterations,
             correction_rate: self.config.correction_rate,
@@ -207,26 +322,25 @@ impl World {
                         relaxation::relax(&mut self.bodies, ga, gb, params)
                     }
                     BroadPhase::Sweep | BroadPhase::Grid => {
-                        let mut pairs = std::mem::take(&mut self.pairs);
+                        let mut pairs = std::mem::take(&mut self.scratch.candidates);
                         self.candidates(a, b, dt, &mut pairs);
                         let report = relaxation::relax_pairs(&mut self.bodies, &pairs, params);
-                        self.pairs = pairs;
+                        self.scratch.candidates = pairs;
                         report
                     }
                 }
             };
-            stats.contacts += report.contacts;
-            stats.relaxation_iterations += report.iterations as u64;
-            stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
-            stats.residual = stats.residual.max(report.residual);
+            stats.fold(report);
         }
     }
 
     /// The particle interactions in declaration order: every particle inside a shape of
     /// the group is projected out to its boundary, where the rigid bodies are now.
-    pub(super) fn particle_interactions(&mut self, stats: &mut StepStats) {
+    /// Returns how many particles were projected.
+    fn particle_interactions(&mut self) -> u64 {
+        let mut projected = 0;
         if self.particles.is_empty() {
-            return;
+            return projected;
         }
         for k in 0..self.interactions.len() {
             let inter = self.interactions[k];
@@ -263,11 +377,12 @@ impl World {
                 None
             };
             let threads = self.config.threads;
-            stats.particle_contacts += match grid {
+            projected += match grid {
                 Some(grid) => self.particles.project_out_of_grid_on(&grid, threads),
                 None => self.particles.project_out_of_shapes_on(&shapes, threads),
             };
         }
+        projected
     }
 
     /// Solves the resting load before the first step: one frame of `settle_iterations`
@@ -281,15 +396,30 @@ impl World {
         self.config.adaptive_iterations = 0;
         self.config.start_iterations = 0;
         self.config.relax_iterations = 0;
+        self.find_contacts(dt);
         self.solve_impulses(&mut StepStats::default(), dt);
         self.config = config;
         self.bodies = bodies;
         self.flagged = flagged;
     }
 
-    /// One frame of the impulse solver (all its sub-steps) over the contacts of every rigid
-    /// interaction.
-    pub(super) fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
+    /// The candidate pairs of every resolving interaction at once, in the contacts: the
+    /// grid keeps them up to date itself; sweep and all pairs refill them, the pairs found
+    /// again keeping their warm starts.
+    fn find_contacts(&mut self, dt: f64) {
+        self.broad_phase(dt);
+        if self.config.broad_phase != BroadPhase::Grid {
+            self.contacts.refill(
+                &mut self.scratch.candidates,
+                &mut self.scratch.last_contacts,
+            );
+            self.pair_set.forget();
+        }
+    }
+
+    /// One frame of the impulse solver (all its sub-steps) over the contacts found, and
+    /// the detect-only interactions flagged.
+    fn solve_impulses(&mut self, stats: &mut StepStats, h: f64) {
         for k in 0..self.interactions.len() {
             let inter = self.interactions[k];
             let (Side::Group(a), Side::Group(b), false) = (inter.a, inter.b, inter.resolve) else {
@@ -301,11 +431,13 @@ impl World {
             );
             if !ga.is_empty() && !gb.is_empty() {
                 let report = relaxation::detect_only(&mut self.bodies, ga, gb);
-                stats.contacts += report.contacts;
+                // Detections count as contacts; no pass ran, nothing was resolved.
+                stats.fold(SolverReport {
+                    contacts: report.contacts,
+                    ..SolverReport::default()
+                });
             }
         }
-        self.broad_phase(h);
-        let mut all = std::mem::take(&mut self.pairs);
         let config = &self.config;
         let params = ImpulseParams {
             iterations: config.impulse_iterations_at(self.frame),
@@ -325,45 +457,19 @@ impl World {
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
         };
-        let grid = config.broad_phase == BroadPhase::Grid;
-        let mut pairs = if grid {
-            std::mem::take(&mut self.pair_set.pairs)
-        } else {
-            let mut pairs = std::mem::take(&mut self.solver_pairs);
-            self.contact_cache.pairs(&self.bodies, &mut all, &mut pairs);
-            pairs
-        };
-        let config = &self.config;
         let report = impulse::solve_frame(
             &mut self.bodies,
-            &mut pairs,
+            &mut self.contacts.pairs,
             params,
             &mut self.solver_buffers,
             &self.movers,
             |b| integrate::acceleration(b, config),
             &mut self.flagged,
         );
-        if grid {
-            self.pair_set.pairs = pairs;
-        } else {
-            self.contact_cache.store(&self.bodies, &pairs);
-            self.solver_pairs = pairs;
-        }
-        stats.contacts += report.contacts;
-        stats.relaxation_iterations += report.passes;
-        stats.deepest_penetration = stats.deepest_penetration.max(report.deepest);
-        stats.residual = stats.residual.max(report.residual);
-        self.pairs = all;
+        stats.fold(report);
     }
 
-    /// Runs `n` steps.
-    pub fn step_n(&mut self, n: u64) {
-        for _ in 0..n {
-            self.step();
-        }
-    }
-
-    pub(super) fn run_emitters(&mut self) {
+    fn run_emitters(&mut self) {
         if self.emitters.is_empty() {
             return;
         }

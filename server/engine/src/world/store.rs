@@ -244,6 +244,7 @@ impl World {
         self.bodies.retain(|_| keep.next().unwrap_or(true));
         let mut keep = doomed.iter().map(|&d| !d);
         self.infos.retain(|_| keep.next().unwrap_or(true));
+        self.contacts.remove_bodies(&doomed);
         self.layout_revision += 1;
         self.rebuild_groups();
     }

@@ -84,6 +84,8 @@ pub fn assign(places: &[DVec2], blocks: usize, out: &mut Vec<u16>, scratch: &mut
 /// The bucket of a contact between slots `a` and `b` (`blocks` = the boundary).
 /// `moves(s)`: whether slot `s` is written by the solver (a moving body); `block(s)` its
 /// block if it is.
+// Called for every contact found: inlined whatever codegen unit the solver lands in.
+#[inline(always)]
 pub fn bucket_of(
     a: u32,
     b: u32,

@@ -317,8 +317,8 @@ fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
 /// Four blocks a thread runs are interleaved, a contact of each in turn (two when the
 /// thread has two or three): they touch different bodies, so the processor overlaps them
 /// instead of waiting on each contact's result for the next (consecutive contacts of one
-/// block share a body). The bits are those of one block after the other. On pyramid-100
-/// (8 blocks), four ways ran 4% faster than two, eight no faster than four.
+/// block share a body). The bits are those of one block after the other. Why four, not
+/// two or eight: docs/bench/engine-notes.md.
 #[inline(always)]
 fn in_blocks(
     team: &Team,

@@ -1,6 +1,8 @@
 //! The impulse solver's unit tests: single contacts, restitution, friction, warm starting.
 
 use super::*;
+use crate::dynamics::body::BodyKey;
+use crate::dynamics::pairs::Contacts;
 use crate::geometry::Shape;
 
 fn body(key: u32, pos: DVec2, vel: DVec2, inv_mass: f64) -> Body {
@@ -17,21 +19,18 @@ fn solve(
     bodies: &mut [Body],
     candidates: &mut Vec<(u32, u32)>,
     params: ImpulseParams,
-    cache: &mut ContactCache,
+    contacts: &mut Contacts,
 ) -> ImpulseReport {
-    let mut pairs = Vec::new();
-    cache.pairs(bodies, candidates, &mut pairs);
-    let report = solve_frame(
+    contacts.refill(candidates, &mut Vec::new());
+    solve_frame(
         bodies,
-        &mut pairs,
+        &mut contacts.pairs,
         params,
         &mut SolverBuffers::default(),
         &[0, 1],
         |_| DVec2::ZERO,
         &mut Vec::new(),
-    );
-    cache.store(bodies, &pairs);
-    report
+    )
 }
 
 fn params() -> ImpulseParams {
@@ -64,7 +63,7 @@ fn a_head_on_collision_conserves_momentum_and_bounces_by_the_smaller_restitution
         &mut bodies,
         &mut vec![(0, 1)],
         params(),
-        &mut ContactCache::default(),
+        &mut Contacts::default(),
     );
     let p1 = bodies[0].vel * 2.0 + bodies[1].vel * 3.0;
     assert!((p1 - p0).length() < 1e-9);
@@ -86,7 +85,7 @@ fn contacts_push_but_never_pull() {
             baumgarte: 0.0,
             ..params()
         },
-        &mut ContactCache::default(),
+        &mut Contacts::default(),
     );
     assert_eq!(bodies[0].vel.x, -1.0);
     assert_eq!(bodies[1].vel.x, 1.0);
@@ -106,7 +105,7 @@ fn friction_stays_within_the_coulomb_cone_and_never_reverses_sliding() {
             baumgarte: 0.0,
             ..params()
         },
-        &mut ContactCache::default(),
+        &mut Contacts::default(),
     );
     let v = bodies[1].vel;
     // Normal impulse 1 (to stop the approach), friction at most 0.5 of it.
@@ -124,7 +123,7 @@ fn friction_stays_within_the_coulomb_cone_and_never_reverses_sliding() {
             baumgarte: 0.0,
             ..params()
         },
-        &mut ContactCache::default(),
+        &mut Contacts::default(),
     );
     assert!(bodies[1].vel.x.abs() < 1e-9, "{}", bodies[1].vel);
 }
@@ -139,7 +138,7 @@ fn a_pair_listed_twice_is_one_contact() {
         &mut bodies,
         &mut vec![(0, 1), (1, 0)],
         params(),
-        &mut ContactCache::default(),
+        &mut Contacts::default(),
     );
     assert_eq!(r.contacts, 1);
 }
