@@ -443,7 +443,7 @@ fn a_set_solver_knob_shows_in_the_next_frames_figures() {
         ricochet_protocol::frame::peek_header(&sample.payload().to_bytes()).expect("a header")
     };
     let before = header(&frames).stats;
-    assert_eq!(before.relaxation_iterations, 2, "{before:?}");
+    assert_eq!(before.solver_passes, 2, "{before:?}");
     assert!(before.residual.is_finite() && before.energy_change.is_finite());
     let reply = client
         .request_raw(
@@ -460,7 +460,7 @@ fn a_set_solver_knob_shows_in_the_next_frames_figures() {
         let h = header(&frames);
         if h.frame > reply.frame {
             assert_eq!(
-                h.stats.relaxation_iterations, 24,
+                h.stats.solver_passes, 24,
                 "frame {}: {:?}",
                 h.frame, h.stats
             );

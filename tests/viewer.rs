@@ -134,7 +134,7 @@ fn a_saved_recording_holds_every_drawn_frame_with_its_particles_and_figures() {
         "/world/emitters",
         "/stats/step_ms",
         "/stats/contacts",
-        "/stats/relaxation_iterations",
+        "/stats/solver_passes",
         "/stats/deepest_penetration",
         "/stats/energy_change",
         "/stats/residual",

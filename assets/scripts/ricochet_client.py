@@ -64,7 +64,7 @@ def wrap(v):
     """v as a signed 64-bit integer, wrapping as the Rust codec computes."""
     v &= I64 - 1
     return v - I64 if v >= 1 << 63 else v
-STATS = ("step_ms", "contacts", "relaxation_iterations", "deepest_penetration", "kinetic_energy",
+STATS = ("step_ms", "contacts", "solver_passes", "deepest_penetration", "kinetic_energy",
          "particle_contacts", "overruns", "dynamic_bodies", "particles", "emitters",
          "energy_change", "residual")
 STATS_FORMAT = "<fIIffIIIIIff"

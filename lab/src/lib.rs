@@ -11,6 +11,7 @@
 //! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
 //! - [`suite`]: the suite of scene kinds under named settings, against their criteria;
 //! - [`hostile`]: attacks on real servers, each with its defence on and off;
+//! - [`profile`]: where a step's time goes, stage by stage;
 //! - [`wire`]: bytes on the wire per scene; [`fanout`]: one server, many viewers;
 //! - [`chart`]: the trade-off charts' font and their time-against-error panel;
 //! - [`table`]: the one Markdown table writer;
@@ -21,6 +22,7 @@ pub mod bench;
 pub mod chart;
 pub mod fanout;
 pub mod hostile;
+pub mod profile;
 pub mod scene_tradeoff;
 pub mod soak;
 pub mod suite;

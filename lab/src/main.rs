@@ -91,6 +91,27 @@ enum Command {
         #[command(flatten)]
         scene: SceneTradeoffArgs,
     },
+    /// Where a step's time goes, stage by stage (figures, not pass/fail).
+    ///
+    /// Runs scenes headless with the world's stage profile on and reports each stage's mean
+    /// microseconds a step over the whole run and its share of the step. Prints a table;
+    /// with --out, writes it between the profile markers of FILE (docs/bench/README.md).
+    /// Use a release build.
+    Profile {
+        /// Steps of each scene.
+        #[arg(long, default_value_t = 600)]
+        steps: u64,
+        /// Where the scenes are.
+        #[arg(long, default_value = "assets/scenes", value_name = "DIR")]
+        scenes: PathBuf,
+        /// A scene to profile, under --scenes (repeatable; default: pyramid-100.toml,
+        /// suite/rain.toml, emitters.toml).
+        #[arg(long = "scene", value_name = "FILE")]
+        scene: Vec<String>,
+        /// Write the table between the profile markers of this file.
+        #[arg(long, value_name = "FILE")]
+        out: Option<PathBuf>,
+    },
     /// Soak a real server on loopback and measure it (figures, not pass/fail).
     ///
     /// Starts `run` on the scene, journaled; client sessions send valid, invalid and
@@ -268,6 +289,23 @@ fn main() -> Result<()> {
             let written = tradeoff::write(&out, &cells, &references, &command)?;
             eprintln!("wrote {}", list(&written));
             Ok(())
+        }
+        Command::Profile {
+            steps,
+            scenes,
+            scene,
+            out,
+        } => {
+            let names = if scene.is_empty() {
+                ricochet_lab::profile::SCENES
+                    .iter()
+                    .map(|s| s.to_string())
+                    .collect()
+            } else {
+                scene
+            };
+            let report = ricochet_lab::profile::run(&scenes, &names, steps)?;
+            print_table(&report.to_markdown(), out.as_deref(), "profile")
         }
         Command::Soak {
             scene,

@@ -169,3 +169,44 @@ b = "stairs"
     );
     assert!(err.contains("impulse_iterations"), "{err}");
 }
+
+#[test]
+fn profile_times_every_stage_of_a_scene_and_writes_its_table() {
+    let scenes = scene("");
+    let text = report_page(
+        "profile",
+        &[
+            "profile",
+            "--steps",
+            "30",
+            "--scenes",
+            &scenes,
+            "--scene",
+            "pyramid-10.toml",
+            "--scene",
+            "emitters.toml",
+        ],
+    );
+    let row = |stage: &str| -> Vec<f64> {
+        let line = text
+            .lines()
+            .find(|l| l.starts_with(&format!("| {stage} |")))
+            .unwrap_or_else(|| panic!("no row {stage}: {text}"));
+        line.split('|')
+            .skip(2)
+            .filter(|c| !c.trim().is_empty())
+            .map(|c| c.trim().split(' ').next().unwrap().parse().unwrap())
+            .collect()
+    };
+    let (step, passes, particles) = (
+        row("whole step, mean (median)"),
+        row("- velocity passes"),
+        row("particles moved, emitters"),
+    );
+    assert_eq!(step.len(), 2, "{text}");
+    // The pyramid's passes take time and it has no particles; the chapter's emitters
+    // demo runs the relaxation (no passes of the impulse solver) and moves particles.
+    assert!(passes[0] > 0.0 && passes[0] < step[0], "{text}");
+    assert!(particles[0] == 0.0 && particles[1] > 0.0, "{text}");
+    assert!(passes[1] == 0.0, "{text}");
+}

@@ -25,7 +25,7 @@ use crate::draw;
 pub const PLOTS: [(&str, &str); 9] = [
     ("step_ms", "step time (ms)"),
     ("contacts", "contacts"),
-    ("relaxation_iterations", "solver passes run"),
+    ("solver_passes", "solver passes run"),
     ("deepest_penetration", "deepest penetration"),
     ("energy_change", "energy change per step"),
     ("residual", "solver residual (units)"),

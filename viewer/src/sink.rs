@@ -124,7 +124,7 @@ impl WorldSink {
         let values = [
             stats.step_ms as f64,
             stats.contacts as f64,
-            stats.relaxation_iterations as f64,
+            stats.solver_passes as f64,
             stats.deepest_penetration as f64,
             stats.energy_change as f64,
             stats.residual as f64,

@@ -55,7 +55,7 @@ impl Work {
         let moving = world.bodies().iter().filter(|b| b.inv_mass > 0.0).count() as u64;
         self.steps += 1;
         self.contacts += stats.contacts;
-        self.contact_passes += stats.contacts * stats.relaxation_iterations;
+        self.contact_passes += stats.contacts * stats.solver_passes;
         self.body_substeps += moving * u64::from(world.config.substeps.max(1));
         let set = stats.contacts * CONTACT_ROW_BYTES as u64 + moving * SOLVER_BODY_BYTES as u64;
         self.working_set = self.working_set.max(set);

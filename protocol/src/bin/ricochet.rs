@@ -380,7 +380,7 @@ fn watch(
                         out,
                         "frame {} t={:.3}s bodies {} statics {} particles {} emitters {} contacts {} relax {} deepest {:.4} ke {:.2} step {:.3}ms overruns {} bytes {}",
                         h.frame, h.time, decoder.bodies.len(), decoder.statics.len(), decoder.particles.len(), decoder.emitters.len(),
-                        s.contacts, s.relaxation_iterations, s.deepest_penetration, s.kinetic_energy, s.step_ms, s.overruns, bytes.len()
+                        s.contacts, s.solver_passes, s.deepest_penetration, s.kinetic_energy, s.step_ms, s.overruns, bytes.len()
                     )?;
                 }
                 out.flush()?;

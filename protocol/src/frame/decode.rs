@@ -89,7 +89,7 @@ fn read_header(r: &mut Reader) -> Result<Header, DecodeError> {
     let stats = FrameStats {
         step_ms: r.f32()?,
         contacts: r.u32()?,
-        relaxation_iterations: r.u32()?,
+        solver_passes: r.u32()?,
         deepest_penetration: r.f32()?,
         kinetic_energy: r.f32()?,
         particle_contacts: r.u32()?,

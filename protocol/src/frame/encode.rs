@@ -63,7 +63,7 @@ fn put_header(out: &mut Vec<u8>, kind: u8, at: At, time: f64, dt: f64, s: &Frame
     for v in [
         s.step_ms.to_bits(),
         s.contacts,
-        s.relaxation_iterations,
+        s.solver_passes,
         s.deepest_penetration.to_bits(),
         s.kinetic_energy.to_bits(),
         s.particle_contacts,

@@ -23,7 +23,7 @@
 //!                     own number less the stream's steps a frame
 //! time       f64      simulated seconds
 //! dt         f64      the world's step, seconds
-//! stats      12 x 4 bytes: step_ms f32, contacts u32, relaxation_iterations u32,
+//! stats      12 x 4 bytes: step_ms f32, contacts u32, solver_passes u32,
 //!                     deepest_penetration f32, kinetic_energy f32, particle_contacts u32,
 //!                     overruns u32, dynamic_bodies u32, particles u32, emitters u32,
 //!                     energy_change f32, residual f32
@@ -187,7 +187,7 @@ pub struct FrameStats {
     /// Wall time the step took, in milliseconds.
     pub step_ms: f32,
     pub contacts: u32,
-    pub relaxation_iterations: u32,
+    pub solver_passes: u32,
     pub deepest_penetration: f32,
     pub kinetic_energy: f32,
     pub particle_contacts: u32,

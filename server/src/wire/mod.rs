@@ -181,7 +181,7 @@ impl<'a> FrameSource<'a> {
         let figures = FrameStats {
             step_ms,
             contacts: clamp(stats.contacts),
-            relaxation_iterations: clamp(stats.relaxation_iterations),
+            solver_passes: clamp(stats.solver_passes),
             deepest_penetration: stats.deepest_penetration as f32,
             kinetic_energy: stats.kinetic_energy as f32,
             particle_contacts: clamp(stats.particle_contacts),
@@ -297,7 +297,7 @@ pub fn stats_record(world: &World) -> StatsRecord {
     StatsRecord {
         frame: world.frame(),
         contacts: s.contacts,
-        passes: s.relaxation_iterations,
+        passes: s.solver_passes,
         deepest_penetration: s.deepest_penetration,
         kinetic_energy: s.kinetic_energy,
         particle_contacts: s.particle_contacts,

@@ -20,6 +20,8 @@
 //! each block in the order its contacts were found, then the contacts between blocks, so
 //! the blocks of a pass may run on several threads with the one-thread bits.
 
+use std::time::{Duration, Instant};
+
 use glam::DVec2;
 
 use super::body::Body;
@@ -235,6 +237,49 @@ pub struct SolverBuffers {
     /// Bodies a contact pushed in the sub-step (exact flight only).
     #[serde(skip)]
     pushed: Vec<bool>,
+    /// Where the frame's time went, stage by stage, when the world is profiled (`None`:
+    /// no clock is read).
+    #[serde(skip)]
+    pub times: Option<SolveTimes>,
+}
+
+/// The wall-clock time of each stage of one frame of the impulse solver, summed over its
+/// sub-steps: where a step's rigid stage goes (a world's profile, as Box2D's `b2Profile`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SolveTimes {
+    /// Contacts found among the candidate pairs and prepared (and the resting load).
+    pub search: Duration,
+    /// Gravity added to the velocities.
+    pub integrate_velocities: Duration,
+    /// Last frame's impulses applied again.
+    pub warm_start: Duration,
+    /// The biased velocity passes.
+    pub passes: Duration,
+    /// Positions moved by the velocities.
+    pub integrate_positions: Duration,
+    /// The unbiased (relax) passes.
+    pub relax: Duration,
+    /// Restitution applied to the contacts that bounce.
+    pub restitution: Duration,
+    /// Impulses, velocities and positions stored back in the world's bodies.
+    pub store: Duration,
+}
+
+/// Adds the time since its last reading to a stage's total, or reads no clock at all.
+struct Stopwatch(Option<Instant>);
+
+impl Stopwatch {
+    fn new(on: bool) -> Stopwatch {
+        Stopwatch(on.then(Instant::now))
+    }
+
+    fn lap(&mut self, total: Option<&mut Duration>) {
+        if let (Some(last), Some(total)) = (self.0.as_mut(), total) {
+            let now = Instant::now();
+            *total += now - *last;
+            *last = now;
+        }
+    }
 }
 
 /// How the biased passes push touching contacts apart, against dynamic bodies and against
@@ -315,6 +360,8 @@ pub fn solve_frame(
             &*crew
         }
     };
+    let mut times = buffers.times.take();
+    let mut clock = Stopwatch::new(times.is_some());
     {
         let searching = split(pairs.len().min(buffers.last_contacts));
         let found = prepare::prepare(bodies, pairs, params, buffers, movers, &gains, searching);
@@ -332,6 +379,7 @@ pub fn solve_frame(
         if let Some(up) = params.rest_load {
             load::rest(buckets, sb, gain, bodies, slotted, h, up);
         }
+        clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
         // The change under which a pass has converged, in the units of the smallest
         // contact.
@@ -340,9 +388,11 @@ pub fn solve_frame(
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
             passes::integrate_velocities(sb, gain, h);
+            clock.lap(times.as_mut().map(|t| &mut t.integrate_velocities));
             if params.warm_starting || params.rest_load.is_some() || step > 0 {
                 passes::warm_start(team, sb, buckets);
             }
+            clock.lap(times.as_mut().map(|t| &mut t.warm_start));
             passes::solve(
                 team,
                 sb,
@@ -354,11 +404,15 @@ pub fn solve_frame(
                 last_step,
                 &mut report,
             );
+            clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());
+            clock.lap(times.as_mut().map(|t| &mut t.integrate_positions));
             passes::relax(team, sb, buckets, &params, h, last_step, &mut report);
+            clock.lap(times.as_mut().map(|t| &mut t.relax));
             if bouncing {
                 bouncing = passes::restitution(sb, buckets);
             }
+            clock.lap(times.as_mut().map(|t| &mut t.restitution));
         }
     }
     let SolverBuffers {
@@ -368,11 +422,13 @@ pub fn solve_frame(
         buckets,
         pushed,
         ..
-    } = buffers;
+    } = &mut *buffers;
     passes::store(bodies, pairs, movers, sb, slotted, buckets, pushed, flagged);
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
     }
+    clock.lap(times.as_mut().map(|t| &mut t.store));
+    buffers.times = times;
     report
 }
 

@@ -88,7 +88,7 @@ pub struct StepStats {
     /// Solver passes run, counted as they run: the relaxation solver's passes summed over
     /// interactions (it stops early once a pass finds no overlap), or the impulse
     /// solver's velocity passes over all sub-steps.
-    pub relaxation_iterations: u64,
+    pub solver_passes: u64,
     /// Deepest rigid penetration detected.
     pub deepest_penetration: f64,
     /// Particles projected out of shapes.
@@ -183,6 +183,9 @@ pub struct World {
     /// read by the simulation).
     #[serde(skip)]
     profile: StepProfile,
+    /// Whether steps time their stages ([`World::set_profiling`]).
+    #[serde(skip)]
+    profiling: bool,
 }
 
 /// What a step fills and reads again, kept between steps only to spare allocations or as
@@ -247,6 +250,7 @@ impl World {
             sleeping: 0,
             scratch: Scratch::default(),
             profile: StepProfile::default(),
+            profiling: false,
         }
     }
 
@@ -314,7 +318,17 @@ impl World {
         self.stats
     }
 
-    /// What each stage of the last step took by the wall clock.
+    /// Times each stage of the steps from now on ([`World::profile`]), or stops: a
+    /// world that is not profiled reads no clock in its step. Changes no simulated bit.
+    pub fn set_profiling(&mut self, on: bool) {
+        self.profiling = on;
+        if !on {
+            self.profile = StepProfile::default();
+        }
+    }
+
+    /// What each stage of the last step took by the wall clock (all zero unless the
+    /// world is profiled).
     pub fn profile(&self) -> &StepProfile {
         &self.profile
     }

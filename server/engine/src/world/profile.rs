@@ -1,13 +1,16 @@
 //! What each stage of the last step took by the wall clock, as Box2D's `b2Profile`: for
 //! finding where a step's time goes. It is not one of the step's figures
 //! ([`super::StepStats`], written to deterministic outputs) and nothing simulated reads
-//! it.
+//! it. Only a profiled world ([`super::World::set_profiling`]) reads the clock: the rest
+//! pay nothing for it.
 
 use std::time::{Duration, Instant};
 
-/// The wall-clock time of each stage of the last [`super::World::step`]. A stage with
-/// nothing to do (no behaviours, no particles, sleeping off, the relaxation's broad
-/// phase) reads zero.
+pub use crate::dynamics::impulse::SolveTimes;
+
+/// The wall-clock time of each stage of the last [`super::World::step`] of a profiled
+/// world (all zero otherwise). A stage with nothing to do (no behaviours, no particles,
+/// sleeping off, the relaxation's broad phase) reads zero.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct StepProfile {
     /// The whole step.
@@ -29,28 +32,36 @@ pub struct StepProfile {
     pub sleep: Duration,
     /// The energies of the step's figures.
     pub energy: Duration,
+    /// The impulse solver's stages inside `rigid` (zero under the relaxation).
+    pub solve: SolveTimes,
 }
 
-/// A stopwatch handing out the time since its last reading: one clock reading a stage.
+/// A stopwatch handing out the time since its last reading: one clock reading a stage, or
+/// none at all when the world is not profiled.
 pub(super) struct Laps {
-    start: Instant,
-    last: Instant,
+    /// The start and the last reading; `None`: off, every lap is zero.
+    readings: Option<(Instant, Instant)>,
 }
 
 impl Laps {
-    pub(super) fn start() -> Laps {
-        let now = Instant::now();
+    /// A stopwatch that reads the clock only when `on`.
+    pub(super) fn start(on: bool) -> Laps {
         Laps {
-            start: now,
-            last: now,
+            readings: on.then(|| {
+                let now = Instant::now();
+                (now, now)
+            }),
         }
     }
 
     /// The time since the last lap (or the start).
     pub(super) fn lap(&mut self) -> Duration {
+        let Some((_, last)) = self.readings.as_mut() else {
+            return Duration::ZERO;
+        };
         let now = Instant::now();
-        let lap = now - self.last;
-        self.last = now;
+        let lap = now - *last;
+        *last = now;
         lap
     }
 
@@ -67,6 +78,7 @@ impl Laps {
 
     /// The time from the start to the last lap.
     pub(super) fn total(&self) -> Duration {
-        self.last - self.start
+        self.readings
+            .map_or(Duration::ZERO, |(start, last)| last - start)
     }
 }

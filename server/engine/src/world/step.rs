@@ -55,7 +55,7 @@ impl StepStats {
     pub(super) fn fold(&mut self, report: impl Into<SolverReport>) {
         let r = report.into();
         self.contacts += r.contacts;
-        self.relaxation_iterations += r.passes;
+        self.solver_passes += r.passes;
         self.deepest_penetration = self.deepest_penetration.max(r.deepest);
         self.residual = self.residual.max(r.residual);
     }
@@ -79,10 +79,10 @@ impl World {
     /// 7. sleeping: islands of resting bodies go to sleep;
     /// 8. the energies the step's figures report.
     ///
-    /// Each stage's wall-clock time is kept in [`World::profile`]; nothing simulated
-    /// reads it.
+    /// In a profiled world ([`World::set_profiling`]) each stage's wall-clock time is
+    /// kept in [`World::profile`]; nothing simulated reads it.
     pub fn step(&mut self) {
-        let (mut laps, mut took) = (Laps::start(), StepProfile::default());
+        let (mut laps, mut took) = (Laps::start(self.profiling), StepProfile::default());
         let mut stats = StepStats::default();
         let energy_before = self.last_energy.unwrap_or_else(|| self.mechanical_energy());
         self.freeze_sleepers();
@@ -102,6 +102,7 @@ impl World {
         self.energy_stage(&mut stats, energy_before);
         took.energy = laps.lap();
         took.step = laps.total();
+        took.solve = self.solver_buffers.times.take().unwrap_or_default();
         self.stats = stats;
         self.profile = took;
         self.frame += 1;
@@ -457,6 +458,12 @@ impl World {
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
         };
+        // A profiled world times the solver's stages too (summed over the frame's calls).
+        if self.profiling {
+            self.solver_buffers
+                .times
+                .get_or_insert_with(Default::default);
+        }
         let report = impulse::solve_frame(
             &mut self.bodies,
             &mut self.contacts.pairs,

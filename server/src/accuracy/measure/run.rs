@@ -107,7 +107,7 @@ pub fn run(subject: &Subject, overrides: &[String], mut tick: impl FnMut()) -> R
         let acted = done.due > 0;
         run.ms.push(done.step_time.as_secs_f64() * 1e3);
         let s = w.stats();
-        run.work += s.relaxation_iterations.max(1) * s.contacts
+        run.work += s.solver_passes.max(1) * s.contacts
             + u64::from(w.config.substeps) * run.dynamic.len() as u64;
         run.features.contacts |= s.contacts > 0;
         run.deepest_penetration = run.deepest_penetration.max(s.deepest_penetration);

@@ -133,7 +133,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         world.particles().len(),
         world.emitters().len(),
         stats.contacts,
-        stats.relaxation_iterations,
+        stats.solver_passes,
         stats.deepest_penetration,
         stats.kinetic_energy,
     );

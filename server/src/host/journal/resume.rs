@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use anyhow::{anyhow, bail, Context, Result};
 use ricochet_engine::world::Limits;
 
-use super::super::answered::{Answer, Answered, REMEMBER_FOR};
+use super::super::answered::{Answer, Answered, Remembered, REMEMBER_FOR};
 use super::super::hosted::{Handled, Hosted};
 use super::super::inbox::Sender;
 use super::super::HostOptions;
@@ -102,10 +102,86 @@ impl<R: BufRead> Lines<R> {
 /// made after the world, so when they are forgotten their memory goes back whole, not as
 /// holes between the world's.
 pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
-    let open =
-        || File::open(path).with_context(|| format!("cannot open the journal {}", path.display()));
     let at = |n: usize| format!("journal {} line {n}", path.display());
-    let mut lines = Lines::new(BufReader::new(open()?), 1);
+    let mut lines = Lines::new(BufReader::new(open(path)?), 1);
+    let (header, signed, opts) = read_header(&mut lines, path, opts)?;
+    let replay = Instant::now();
+    // A journal of version 4 may start from a checkpoint: its second line names it.
+    let second = lines.next(path)?.map(|(n, raw)| (n, raw.to_string()));
+    let reference = match &second {
+        Some((_, raw)) => match serde_json::from_str::<Line>(raw) {
+            Ok(Line::Checkpoint { checkpoint }) => Some(checkpoint),
+            _ => None,
+        },
+        None => None,
+    };
+    let (host, saved, checkpoint_file, pending) = match reference {
+        Some(reference) => {
+            if header.journal < 4 {
+                bail!(
+                    "{}: a checkpoint in a journal of version {}",
+                    at(2),
+                    header.journal
+                );
+            }
+            let restored = checkpoint::restore(path, &reference, &opts).with_context(|| at(2))?;
+            let saved = (restored.frame, restored.answers);
+            (restored.host, Some(saved), Some(reference.file), None)
+        }
+        None => {
+            let mut host =
+                Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
+                    .with_context(|| format!("{}: the journal's scene", at(1)))?;
+            host.accuracy = header.accuracy.clone();
+            (host, None, None, second)
+        }
+    };
+    let mut first = FirstPass::new(host);
+    first.replay(&mut lines, pending, path)?;
+    let replay_ms = replay.elapsed().as_secs_f64() * 1e3;
+    let whole = lines.whole;
+    drop(lines);
+    let answered = first.answers(path, whole, signed, saved)?;
+    let mut host = first.host;
+    // What the server counts from here is what it does live, not the replay.
+    host.accounts.health = Default::default();
+    // Go on appending, after a line cut short if there is one.
+    let file = OpenOptions::new()
+        .append(true)
+        .open(path)
+        .with_context(|| format!("cannot append to the journal {}", path.display()))?;
+    // A line cut short is garbage in the middle of the journal once more is appended: cut
+    // it off.
+    if file.metadata()?.len() > whole {
+        file.set_len(whole)?;
+    }
+    checkpoint::remove_strays(path, checkpoint_file.as_deref());
+    Ok(Resumed {
+        world: header.world,
+        host,
+        answered,
+        journal: {
+            let mut journal = Journal::appending(file, path, opts.checkpoints, checkpoint_file);
+            journal.since.bytes = whole;
+            journal.since.step_ms = replay_ms;
+            journal
+        },
+        opts,
+    })
+}
+
+fn open(path: &Path) -> Result<File> {
+    File::open(path).with_context(|| format!("cannot open the journal {}", path.display()))
+}
+
+/// The journal's header, whether its lines carry checksums, and the options it sets over
+/// `opts` (its scene, world, overrides and limits, checked against this server's).
+fn read_header<R: BufRead>(
+    lines: &mut Lines<R>,
+    path: &Path,
+    opts: &HostOptions,
+) -> Result<(Header, bool, HostOptions)> {
+    let at = |n: usize| format!("journal {} line {n}", path.display());
     // The header says whether the lines carry checksums: it is read as it is (checked
     // against its own checksum if it has one).
     lines.signed = false;
@@ -145,72 +221,81 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
     opts.limits = limits;
     opts.scene = Some(header.scene.name.clone());
     opts.world = header.world.clone();
-    let replay = Instant::now();
-    // A journal of version 4 may start from a checkpoint: its second line names it.
-    let second = lines.next(path)?.map(|(n, raw)| (n, raw.to_string()));
-    let reference = match &second {
-        Some((_, raw)) => match serde_json::from_str::<Line>(raw) {
-            Ok(Line::Checkpoint { checkpoint }) => Some(checkpoint),
-            _ => None,
-        },
-        None => None,
-    };
-    let (mut host, saved, checkpoint_file, mut pending) = match reference {
-        Some(reference) => {
-            if header.journal < 4 {
-                bail!(
-                    "{}: a checkpoint in a journal of version {}",
-                    at(2),
-                    header.journal
-                );
-            }
-            let restored = checkpoint::restore(path, &reference, &opts).with_context(|| at(2))?;
-            let saved = (restored.frame, restored.answers);
-            (restored.host, Some(saved), Some(reference.file), None)
+    Ok((header, signed, opts))
+}
+
+/// The first pass over a journal: the world rebuilt line by line, and what the second
+/// pass needs to recall the answers of the last window of frames.
+struct FirstPass {
+    host: Hosted,
+    /// Frames a remembered id is kept for, and how often a frame's place is marked.
+    window: u64,
+    mark_every: u64,
+    /// Where the lines of a frame start (frame, byte offset, line number), about once a
+    /// second of frames, only as far back as the window of remembered ids: the second
+    /// pass starts at the last mark before the window.
+    marks: VecDeque<(u64, u64, usize)>,
+    /// The `step`s with ids whose steps had not all run (line, due at step): answered
+    /// when they have.
+    running: Vec<(usize, u64)>,
+    /// The answers of the commands with ids written before they ran (version 3), as the
+    /// replay recomputes them, for the last window of frames: (frame, sender, id, answer).
+    recent: VecDeque<(u64, Sender, String, Answer)>,
+}
+
+impl FirstPass {
+    fn new(host: Hosted) -> FirstPass {
+        let dt = host.world.config.dt;
+        let window = (REMEMBER_FOR.as_secs_f64() / dt).ceil() as u64;
+        let mark_every = ((1.0 / dt).round() as u64).max(1);
+        FirstPass {
+            host,
+            window,
+            mark_every,
+            marks: VecDeque::with_capacity((window / mark_every + 3) as usize),
+            running: Vec::new(),
+            recent: VecDeque::new(),
         }
-        None => {
-            let mut host =
-                Hosted::load(header.scene.text.clone(), header.scene.name.clone(), &opts)
-                    .with_context(|| format!("{}: the journal's scene", at(1)))?;
-            host.accuracy = header.accuracy.clone();
-            (host, None, None, second)
+    }
+
+    /// Replays every line after the header (`pending` first, if read already).
+    fn replay<R: BufRead>(
+        &mut self,
+        lines: &mut Lines<R>,
+        mut pending: Option<(usize, String)>,
+        path: &Path,
+    ) -> Result<()> {
+        loop {
+            let (n, raw) = match pending.take() {
+                Some(first) => first,
+                None => match lines.next(path)? {
+                    Some((n, raw)) => (n, raw.to_string()),
+                    None => return Ok(()),
+                },
+            };
+            let at = format!("journal {} line {n}", path.display());
+            let line: Line = serde_json::from_str(&raw).map_err(|e| anyhow!("{at}: {e}"))?;
+            self.line(line, n, lines.whole, &at)?;
         }
-    };
-    // Where the lines of a frame start (byte offset, line number), about once a second of
-    // frames, only as far back as the window of remembered ids: the second pass starts at
-    // the last mark before the window.
-    let dt = host.world.config.dt;
-    let window = (REMEMBER_FOR.as_secs_f64() / dt).ceil() as u64;
-    let mark_every = ((1.0 / dt).round() as u64).max(1);
-    let mut marks: VecDeque<(u64, u64, usize)> =
-        VecDeque::with_capacity((window / mark_every + 3) as usize);
-    // The `step`s with ids whose steps had not all run (line, due at step): answered when
-    // they have.
-    let mut running: Vec<(usize, u64)> = Vec::new();
-    // The answers of the commands with ids written before they ran (version 3), as the
-    // replay recomputes them, for the last window of frames: (frame, sender, id, answer).
-    let mut recent: VecDeque<(u64, Sender, String, Answer)> = VecDeque::new();
-    loop {
-        let (n, raw) = match pending.take() {
-            Some(first) => first,
-            None => match lines.next(path)? {
-                Some((n, raw)) => (n, raw.to_string()),
-                None => break,
-            },
-        };
-        let line: Line = serde_json::from_str(&raw).map_err(|e| anyhow!("{}: {e}", at(n)))?;
+    }
+
+    /// One line of the journal, line `n`, the whole lines before the next one `whole`
+    /// bytes long.
+    fn line(&mut self, line: Line, n: usize, whole: u64, at: &str) -> Result<()> {
+        let (host, window) = (&mut self.host, self.window);
         match line {
             Line::At { at: frame } => {
                 host.advance();
                 if host.world.frame() != frame {
                     bail!(
-                        "{}: frame {frame} stepped, but the rebuilt world is at frame {}",
-                        at(n),
+                        "{at}: frame {frame} stepped, but the rebuilt world is at frame {}",
                         host.world.frame()
                     );
                 }
-                running.retain(|&(_, due)| due > host.stepping.steps_run);
-                if frame % mark_every == 0 {
+                let steps_run = host.stepping.steps_run;
+                self.running.retain(|&(_, due)| due > steps_run);
+                if frame % self.mark_every == 0 {
+                    let marks = &mut self.marks;
                     // The lines after this one act at this frame's boundary or later.
                     while marks.len() >= 2 && marks[1].0 + window <= frame {
                         marks.pop_front();
@@ -218,7 +303,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                     if marks.len() == marks.capacity() {
                         marks.pop_front();
                     }
-                    marks.push_back((frame, lines.whole, n + 1));
+                    marks.push_back((frame, whole, n + 1));
                 }
             }
             Line::Command {
@@ -229,24 +314,23 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                 ..
             } => {
                 if reply.ok {
-                    check_frame(&host, frame, &at(n))?;
+                    check_frame(host, frame, at)?;
                     let handled = host.handle(&command);
                     if !handled.reply.ok {
                         bail!(
-                            "{}: applied when journaled, refused now: {}",
-                            at(n),
+                            "{at}: applied when journaled, refused now: {}",
                             handled.reply.error.unwrap_or_default()
                         );
                     }
                     if id.is_some() && handled.due_at_step > host.stepping.steps_run {
-                        running.push((n, handled.due_at_step));
+                        self.running.push((n, handled.due_at_step));
                     }
                 }
             }
             Line::Scene { frame, scene, .. } => {
-                check_frame(&host, frame, &at(n))?;
+                check_frame(host, frame, at)?;
                 host.adopt_scene(scene.text, scene.name)
-                    .map_err(|e| anyhow!("{}: the loaded scene: {e}", at(n)))?;
+                    .map_err(|e| anyhow!("{at}: the loaded scene: {e}"))?;
             }
             // Written before it ran: replayed as it ran then, refused or not.
             Line::Apply {
@@ -255,9 +339,9 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                 sender,
                 id,
             } => {
-                check_frame(&host, frame, &at(n))?;
+                check_frame(host, frame, at)?;
                 let handled = host.handle(&apply);
-                keep_answer(&mut recent, frame, sender, id, handled, window);
+                keep_answer(&mut self.recent, frame, sender, id, handled, window);
             }
             Line::Load {
                 frame,
@@ -265,117 +349,99 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
                 sender,
                 id,
             } => {
-                check_frame(&host, frame, &at(n))?;
+                check_frame(host, frame, at)?;
                 let handled = host.handle_scene(load.text, load.name);
-                keep_answer(&mut recent, frame, sender, id, handled, window);
+                keep_answer(&mut self.recent, frame, sender, id, handled, window);
             }
             Line::Replied { .. } => {}
             Line::Checkpoint { .. } => {
-                bail!(
-                    "{}: a checkpoint is named only right after the header",
-                    at(n)
-                )
+                bail!("{at}: a checkpoint is named only right after the header")
             }
         }
+        Ok(())
     }
-    let replay_ms = replay.elapsed().as_secs_f64() * 1e3;
-    let whole = lines.whole;
-    drop(lines);
 
-    // The second pass: the answers of the window.
-    let last = host.world.frame();
-    let (from, below, first) = match marks.front() {
-        Some(&(frame, offset, n)) if frame + window <= last => (frame, offset, n),
-        _ => (0, 0, 1),
-    };
-    let mut file = open()?;
-    file.seek(SeekFrom::Start(below))?;
-    let mut lines = Lines::new(BufReader::new(file).take(whole - below), first);
-    lines.signed = signed;
-    if below == 0 {
-        lines.next(path)?; // the header
-    }
-    let now = Instant::now();
-    let mut answered = Answered::default();
-    // The answers the checkpoint kept come first: they are the oldest.
-    if let Some((frame, answers)) = saved {
-        let since = last.saturating_sub(frame) as f64 * dt;
-        for r in answers {
-            let age = Duration::from_secs_f64((r.age + since).max(0.0));
-            let answer = Answer {
-                reply: r.reply.into_bytes().into_boxed_slice(),
-                due_at_step: r.due_at_step,
-            };
-            answered.remember_at(r.sender, r.id, answer, now.checked_sub(age).unwrap_or(now));
+    /// The second pass: the answers of the last window of frames, read from the last mark
+    /// before it to the end of the whole lines (`whole` bytes), after those a checkpoint
+    /// `saved` (the oldest).
+    fn answers(
+        &mut self,
+        path: &Path,
+        whole: u64,
+        signed: bool,
+        saved: Option<(u64, Vec<Remembered>)>,
+    ) -> Result<Answered> {
+        let at = |n: usize| format!("journal {} line {n}", path.display());
+        let dt = self.host.world.config.dt;
+        let last = self.host.world.frame();
+        let (from, below, first) = match self.marks.front() {
+            Some(&(frame, offset, n)) if frame + self.window <= last => (frame, offset, n),
+            _ => (0, 0, 1),
+        };
+        let mut file = open(path)?;
+        file.seek(SeekFrom::Start(below))?;
+        let mut lines = Lines::new(BufReader::new(file).take(whole - below), first);
+        lines.signed = signed;
+        if below == 0 {
+            lines.next(path)?; // the header
         }
-    }
-    while let Some((n, raw)) = lines.next(path)? {
-        let (frame, reply, sender, id, due_at_step) =
-            match serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))? {
-                Line::Command {
-                    frame,
-                    reply,
-                    sender,
-                    id: Some(id),
-                    ..
-                } => {
-                    // A `step` still running when the server stopped is answered once its steps
-                    // have run.
-                    let due = running
-                        .iter()
-                        .find(|&&(line, _)| line == n)
-                        .map_or(0, |&(_, due)| due);
-                    (frame, reply, sender, id, due)
-                }
-                Line::Scene {
-                    frame,
-                    reply,
-                    sender,
-                    id: Some(id),
-                    ..
-                } => (frame, reply, sender, id, 0),
-                _ => continue,
-            };
-        if frame < from {
-            continue;
+        let now = Instant::now();
+        let ago = |frame: u64| {
+            let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
+            now.checked_sub(age).unwrap_or(now)
+        };
+        let mut answered = Answered::default();
+        // The answers the checkpoint kept come first: they are the oldest.
+        if let Some((frame, answers)) = saved {
+            let since = last.saturating_sub(frame) as f64 * dt;
+            for r in answers {
+                let age = Duration::from_secs_f64((r.age + since).max(0.0));
+                let answer = Answer {
+                    reply: r.reply.into_bytes().into_boxed_slice(),
+                    due_at_step: r.due_at_step,
+                };
+                answered.remember_at(r.sender, r.id, answer, now.checked_sub(age).unwrap_or(now));
+            }
         }
-        let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
-        answered.remember_at(
-            sender,
-            id,
-            Answer::new(&reply, due_at_step),
-            now.checked_sub(age).unwrap_or(now),
-        );
+        while let Some((n, raw)) = lines.next(path)? {
+            let (frame, reply, sender, id, due_at_step) =
+                match serde_json::from_str(raw).map_err(|e| anyhow!("{}: {e}", at(n)))? {
+                    Line::Command {
+                        frame,
+                        reply,
+                        sender,
+                        id: Some(id),
+                        ..
+                    } => {
+                        // A `step` still running when the server stopped is answered once
+                        // its steps have run.
+                        let due = self
+                            .running
+                            .iter()
+                            .find(|&&(line, _)| line == n)
+                            .map_or(0, |&(_, due)| due);
+                        (frame, reply, sender, id, due)
+                    }
+                    Line::Scene {
+                        frame,
+                        reply,
+                        sender,
+                        id: Some(id),
+                        ..
+                    } => (frame, reply, sender, id, 0),
+                    _ => continue,
+                };
+            if frame < from {
+                continue;
+            }
+            answered.remember_at(sender, id, Answer::new(&reply, due_at_step), ago(frame));
+        }
+        let window = self.window;
+        for (frame, sender, id, answer) in self.recent.drain(..).filter(|r| r.0 + window > last) {
+            answered.remember_at(sender, id, answer, ago(frame));
+        }
+        Ok(answered)
     }
-    for (frame, sender, id, answer) in recent.into_iter().filter(|r| r.0 + window > last) {
-        let age = Duration::from_secs_f64(last.saturating_sub(frame) as f64 * dt);
-        answered.remember_at(sender, id, answer, now.checked_sub(age).unwrap_or(now));
-    }
-    // What the server counts from here is what it does live, not the replay.
-    host.accounts.health = Default::default();
-    // Go on appending, after a line cut short if there is one.
-    let file = OpenOptions::new()
-        .append(true)
-        .open(path)
-        .with_context(|| format!("cannot append to the journal {}", path.display()))?;
-    // A line cut short is garbage in the middle of the journal once more is appended: cut
-    // it off.
-    if file.metadata()?.len() > whole {
-        file.set_len(whole)?;
-    }
-    checkpoint::remove_strays(path, checkpoint_file.as_deref());
-    Ok(Resumed {
-        world: header.world,
-        host,
-        answered,
-        journal: {
-            let mut journal = Journal::appending(file, path, opts.checkpoints, checkpoint_file);
-            journal.since.bytes = whole;
-            journal.since.step_ms = replay_ms;
-            journal
-        },
-        opts,
-    })
 }
 
 /// Keeps the answer of a replayed command with an id, and only the last `window` frames'.

@@ -41,6 +41,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         pushed: _,
         crew: _,
         last_contacts: _,
+        times: _,
     } = buffers;
     if slot.len() < bodies.len() {
         slot.resize(bodies.len(), UNSLOTTED);
