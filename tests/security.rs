@@ -46,6 +46,15 @@ fn hostile_inputs(long_name: &str) -> Vec<(Vec<u8>, String)> {
             r#"{"do":"load","path":"nothing-here.toml"}"#.into(),
             "no scene",
         ),
+        // A key given twice: refused, never one of the two values taken.
+        (
+            r#"{"do":"press","dir":"up","dir":"down"}"#.into(),
+            "duplicate key `dir`",
+        ),
+        (
+            r#"{"do":"spawn_particles","preset":"fire","at":[1,2],"at":[3,4]}"#.into(),
+            "duplicate key `at`",
+        ),
         // Settings that would freeze or flood the clock.
         (r#"{"do":"set","name":"dt","value":1e-300}"#.into(), "dt"),
         (r#"{"do":"set","name":"dt","value":1e300}"#.into(), "dt"),

@@ -112,8 +112,9 @@ impl Command {
                 )),
             );
         }
-        let mut value: serde_json::Value = match serde_json::from_slice(bytes) {
-            Ok(value) => value,
+        let mut value = match serde_json::from_slice::<Distinct>(bytes) {
+            Ok(Distinct(value)) => value,
+            Err(e) if e.is_data() => return (None, Err(e.to_string())),
             Err(e) => return (None, Err(format!("not JSON: {e}"))),
         };
         let id = match value.as_object_mut().and_then(|o| o.remove("id")) {
@@ -200,6 +201,11 @@ impl Command {
     fn names(&self) -> Vec<(&'static str, &str)> {
         match self {
             Command::World(Action::Clear { group }) => vec![("group", group)],
+            Command::World(
+                Action::Remove { body }
+                | Action::Impulse { body, .. }
+                | Action::SetBody { body, .. },
+            ) => vec![("body", body)],
             Command::World(Action::Select {
                 group: Some(group), ..
             }) => vec![("group", group)],
@@ -215,6 +221,77 @@ impl Command {
 
     pub fn to_json(&self) -> String {
         serde_json::to_string(self).expect("commands serialise")
+    }
+}
+
+/// A JSON value whose objects were read with every key distinct: a key given twice is
+/// refused, where a plain read would keep one of the two values unseen.
+struct Distinct(serde_json::Value);
+
+impl<'de> Deserialize<'de> for Distinct {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(DistinctVisitor).map(Distinct)
+    }
+}
+
+struct DistinctVisitor;
+
+impl<'de> serde::de::Visitor<'de> for DistinctVisitor {
+    type Value = serde_json::Value;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+
+    fn visit_bool<E>(self, v: bool) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+
+    fn visit_i64<E>(self, v: i64) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+
+    fn visit_u64<E>(self, v: u64) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+
+    fn visit_f64<E>(self, v: f64) -> Result<Self::Value, E> {
+        Ok(serde_json::Number::from_f64(v).map_or(serde_json::Value::Null, Into::into))
+    }
+
+    fn visit_str<E>(self, v: &str) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+
+    fn visit_string<E>(self, v: String) -> Result<Self::Value, E> {
+        Ok(v.into())
+    }
+
+    fn visit_unit<E>(self) -> Result<Self::Value, E> {
+        Ok(serde_json::Value::Null)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
+        let mut items = Vec::new();
+        while let Some(Distinct(item)) = seq.next_element()? {
+            items.push(item);
+        }
+        Ok(items.into())
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> Result<Self::Value, A::Error> {
+        let mut object = serde_json::Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            if object.contains_key(&key) {
+                return Err(serde::de::Error::custom(format!(
+                    "duplicate key `{}`",
+                    short(&key, 64)
+                )));
+            }
+            let Distinct(value) = map.next_value()?;
+            object.insert(key, value);
+        }
+        Ok(object.into())
     }
 }
 
@@ -494,6 +571,24 @@ mod tests {
         assert!(Command::parse_limited(br#"{"do":"deselect"}   "#, 10)
             .unwrap_err()
             .contains("limit of 10"));
+    }
+
+    #[test]
+    fn a_key_given_twice_is_refused_at_any_depth() {
+        for (text, key) in [
+            (r#"{"do":"press","dir":"up","dir":"down"}"#, "dir"),
+            (
+                r#"{"do":"set","name":"gravity","value":{"a":1,"a":2}}"#,
+                "a",
+            ),
+            (r#"{"do":"deselect","id":"x","id":"y"}"#, "id"),
+        ] {
+            let e = Command::parse(text.as_bytes()).unwrap_err();
+            assert!(e.contains(&format!("duplicate key `{key}`")), "{text}: {e}");
+        }
+        // Numbers read as a plain read reads them.
+        let c = Command::parse(br#"{"do":"drag","to":[0.1,-3e300]}"#).unwrap();
+        assert_eq!(c, Command::World(Action::Drag { to: [0.1, -3e300] }));
     }
 
     #[test]

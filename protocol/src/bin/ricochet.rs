@@ -29,7 +29,8 @@ World commands: press/release dir=up|down|left|right, fire_dye_pack at=[x,y],\n\
 spawn_minion at=[x,y] [shape=rect], spawn_dumb_minion at=[x,y], select at=[x,y] [group=G],\n\
 drag to=[x,y], deselect, agitate [strength=S], clear group=G,\n\
 spawn_particles preset=fire at=[x,y] [count=N], start_emitter preset=fire count=N at=[x,y],\n\
-set name=NAME value=VALUE. Server commands: pause, resume, step [n=N], reset [paused=true],\n\
+set name=NAME value=VALUE. Any body of any scene, by its id: remove body=ID,\n\
+impulse body=ID impulse=[x,y], set_body body=ID [pos=[x,y]] [vel=[x,y]]. Server commands: pause, resume, step [n=N], reset [paused=true],\n\
 load path=NAME (a scene file under the server's scenes directory) | text=TOML."
 )]
 struct Cli {

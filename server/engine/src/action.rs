@@ -74,6 +74,21 @@ pub enum Action {
         count: u32,
         at: Point,
     },
+    /// Removes the body whose id is `body` (any body of any scene, static or not). A
+    /// body is named by `body` in these commands: `id` is a request's own id.
+    Remove { body: String },
+    /// Adds `impulse` [x, y] to the momentum of the dynamic body `body`: its velocity
+    /// changes by the impulse over its mass.
+    Impulse { body: String, impulse: Point },
+    /// Moves the body `body` to `pos`, sets its velocity to `vel`, or both (a static body
+    /// only moves).
+    SetBody {
+        body: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pos: Option<Point>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vel: Option<Point>,
+    },
     /// Sets one world parameter, named and typed by [`Setting`]:
     /// `{"do": "set", "name": "gravity", "value": [0, -9.8]}`.
     Set(Setting),
@@ -108,6 +123,8 @@ pub enum ActionError {
     UnknownPreset { name: String, known: String },
     #[error("unknown group `{0}`")]
     UnknownGroup(String),
+    #[error("no body `{0}` in this world")]
+    UnknownBody(String),
     #[error(transparent)]
     Config(#[from] ConfigError),
     #[error(transparent)]

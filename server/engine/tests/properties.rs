@@ -108,6 +108,23 @@ fn random_action() -> impl Strategy<Value = Action> {
         Just(Action::Clear {
             group: "dumb_minions".into()
         }),
+        // Bodies by id: some exist in the scene, some do not.
+        prop_oneof![Just("hero"), Just("minion/0"), Just("nobody")].prop_map(|id| {
+            Action::Remove {
+                body: id.to_string(),
+            }
+        }),
+        (point.clone(), prop_oneof![Just("hero"), Just("nobody")]).prop_map(|(p, id)| {
+            Action::Impulse {
+                body: id.to_string(),
+                impulse: p,
+            }
+        }),
+        (point.clone(), point.clone(), 0u8..4).prop_map(|(p, v, which)| Action::SetBody {
+            body: "hero".into(),
+            pos: (which & 1 == 1).then_some(p),
+            vel: (which & 2 == 2).then_some(v),
+        }),
         prop_oneof![
             Just("solver=impulses"),
             Just("solver=relaxation"),

@@ -536,3 +536,112 @@ fn each_stage_of_a_step_is_timed_apart_from_the_state() {
     w.step();
     assert_eq!(w.profile().broad_phase, Duration::ZERO);
 }
+
+/// Any body of any scene, by its id: struck, moved, given a velocity, removed; refusals
+/// name what was wrong and change nothing.
+#[test]
+fn bodies_are_struck_moved_and_removed_by_id() {
+    let mut w = scene::parse(PLATFORM_AND_BOX, Path::new("box.toml"), &[]).unwrap();
+    let mass = 1.0 / w.body("box").unwrap().inv_mass;
+    let before = w.body("box").unwrap().vel;
+    w.apply(&Action::Impulse {
+        body: "box".into(),
+        impulse: [3.0, 0.0],
+    })
+    .unwrap();
+    let after = w.body("box").unwrap().vel;
+    assert_eq!(after - before, DVec2::new(3.0 / mass, 0.0));
+
+    w.apply(&Action::SetBody {
+        body: "box".into(),
+        pos: Some([5.0, 9.0]),
+        vel: None,
+    })
+    .unwrap();
+    assert_eq!(w.body("box").unwrap().pos, DVec2::new(5.0, 9.0));
+    assert_eq!(
+        w.body("box").unwrap().vel,
+        after,
+        "the velocity was not named"
+    );
+    w.apply(&Action::SetBody {
+        body: "box".into(),
+        pos: None,
+        vel: Some([0.0, 2.0]),
+    })
+    .unwrap();
+    assert_eq!(w.body("box").unwrap().vel, DVec2::new(0.0, 2.0));
+    // A static body moves (its snapshot is due again), and has no velocity to set.
+    let statics = w.statics_revision();
+    w.apply(&Action::SetBody {
+        body: "platform".into(),
+        pos: Some([0.0, -1.0]),
+        vel: None,
+    })
+    .unwrap();
+    assert!(w.statics_revision() > statics);
+
+    let saved = w.save();
+    for (action, field) in [
+        (
+            Action::Impulse {
+                body: "platform".into(),
+                impulse: [1.0, 0.0],
+            },
+            "static",
+        ),
+        (
+            Action::Impulse {
+                body: "ghost".into(),
+                impulse: [1.0, 0.0],
+            },
+            "no body `ghost`",
+        ),
+        (
+            Action::Impulse {
+                body: "box".into(),
+                impulse: [f64::NAN, 0.0],
+            },
+            "`impulse`",
+        ),
+        (
+            Action::SetBody {
+                body: "box".into(),
+                pos: None,
+                vel: None,
+            },
+            "nothing to set",
+        ),
+        (
+            Action::SetBody {
+                body: "box".into(),
+                pos: Some([f64::INFINITY, 0.0]),
+                vel: None,
+            },
+            "`pos`",
+        ),
+        (
+            Action::SetBody {
+                body: "platform".into(),
+                pos: None,
+                vel: Some([1.0, 0.0]),
+            },
+            "no velocity",
+        ),
+        (
+            Action::Remove {
+                body: "ghost".into(),
+            },
+            "no body `ghost`",
+        ),
+    ] {
+        let e = w.apply(&action).unwrap_err().to_string();
+        assert!(e.contains(field), "{action:?}: {e}");
+        assert_eq!(w.save(), saved, "{action:?} changed the world");
+    }
+
+    let out = w.apply(&Action::Remove { body: "box".into() }).unwrap();
+    assert_eq!(out.ids, ["box"]);
+    assert!(w.body("box").is_none());
+    w.step();
+}

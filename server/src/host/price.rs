@@ -84,9 +84,10 @@ pub fn model(
     match command {
         Command::World(action) => match action {
             // A pass over the bodies (and, for a selection, a pick among them).
-            Action::Select { .. } | Action::Agitate { .. } | Action::Clear { .. } => {
-                (Kind::Scan, BASE_NS + bodies * SCAN_NS_PER_BODY)
-            }
+            Action::Select { .. }
+            | Action::Agitate { .. }
+            | Action::Clear { .. }
+            | Action::Remove { .. } => (Kind::Scan, BASE_NS + bodies * SCAN_NS_PER_BODY),
             // A spawn over the per-action limit is refused by the world at no cost.
             Action::SpawnParticles { count, .. } => {
                 let count = (*count).min(particles_per_action);

@@ -375,6 +375,11 @@ mod tests {
             r#"{"do":"clear","group":"g"}"#,
             r#"{"do":"spawn_particles","preset":"fire","at":[1,2],"count":7}"#,
             r#"{"do":"start_emitter","preset":"fire","count":7,"at":[1,2]}"#,
+            r#"{"do":"remove","body":"ball/3"}"#,
+            r#"{"do":"impulse","body":"cue","impulse":[4.5,-1]}"#,
+            r#"{"do":"set_body","body":"cue","pos":[1,2]}"#,
+            r#"{"do":"set_body","body":"cue","vel":[0,0.5]}"#,
+            r#"{"do":"set_body","body":"cue","pos":[1,2],"vel":[3,4]}"#,
             r#"{"do":"set","name":"gravity","value":[0.0,-9.8]}"#,
             r#"{"do":"set","name":"solver","value":"relaxation"}"#,
         ] {

@@ -112,6 +112,46 @@ impl World {
                 preset(p)?;
                 self.check_new_emitter(*count).map_err(count_error)?;
             }
+            Action::Remove { body: id } => {
+                self.body_index(id)?;
+            }
+            Action::Impulse { body: id, impulse } => {
+                let i = self.body_index(id)?;
+                point("impulse", *impulse)?;
+                if self.bodies[i].is_static() {
+                    return Err(ActionError::BadArgument {
+                        field: "body",
+                        reason: format!(
+                            "`{}` is static: an impulse moves only a dynamic body",
+                            short(id, MAX_ECHO)
+                        ),
+                    });
+                }
+            }
+            Action::SetBody { body: id, pos, vel } => {
+                let i = self.body_index(id)?;
+                if pos.is_none() && vel.is_none() {
+                    return Err(ActionError::BadArgument {
+                        field: "pos",
+                        reason: "or `vel` is needed: there is nothing to set".into(),
+                    });
+                }
+                if let Some(pos) = pos {
+                    point("pos", *pos)?;
+                }
+                if let Some(vel) = vel {
+                    point("vel", *vel)?;
+                    if self.bodies[i].is_static() && *vel != [0.0, 0.0] {
+                        return Err(ActionError::BadArgument {
+                            field: "vel",
+                            reason: format!(
+                                "`{}` is static: it has no velocity",
+                                short(id, MAX_ECHO)
+                            ),
+                        });
+                    }
+                }
+            }
             Action::Set(setting) => {
                 self.config_after(setting)?;
             }
@@ -269,6 +309,37 @@ impl World {
                 }
                 Ok(ActionOutcome { ids })
             }
+            Action::Remove { body: id } => {
+                self.remove_bodies(|_, info| info.id == *id);
+                Ok(ActionOutcome {
+                    ids: vec![id.clone()],
+                })
+            }
+            Action::Impulse { body: id, impulse } => {
+                let i = self.body_index(id)?;
+                let body = &mut self.bodies[i];
+                body.vel += DVec2::from(*impulse) * body.inv_mass;
+                Ok(ActionOutcome {
+                    ids: vec![id.clone()],
+                })
+            }
+            Action::SetBody { body: id, pos, vel } => {
+                let i = self.body_index(id)?;
+                let body = &mut self.bodies[i];
+                if let Some(pos) = pos {
+                    body.pos = DVec2::from(*pos);
+                    if body.is_static() && body.asleep.is_none() {
+                        self.layout_revision += 1;
+                        self.statics_revision += 1;
+                    }
+                }
+                if let Some(vel) = vel {
+                    body.vel = DVec2::from(*vel);
+                }
+                Ok(ActionOutcome {
+                    ids: vec![id.clone()],
+                })
+            }
             Action::Clear { group } => {
                 let g = self
                     .group(group)
@@ -360,6 +431,16 @@ fn point(field: &'static str, p: [f64; 2]) -> Result<DVec2, ActionError> {
                 crate::dynamics::body::MAX_COORDINATE
             ),
         })
+    }
+}
+
+impl World {
+    /// Where the body `id` is in `bodies`, or a refusal naming it.
+    fn body_index(&self, id: &str) -> Result<usize, ActionError> {
+        self.by_id
+            .get(id)
+            .map(|&i| i as usize)
+            .ok_or_else(|| ActionError::UnknownBody(short(id, MAX_ECHO)))
     }
 }
 
