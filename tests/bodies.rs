@@ -149,6 +149,38 @@ fn a_users_scene_is_driven_by_its_bodies_ids_and_replays_bit_for_bit() {
         },
     });
     step(10);
+
+    // Where the bodies are, at the frame the reply names: by id, or within a box.
+    let bodies = |ids: &[&str], within: Option<[[f64; 2]; 2]>| {
+        request(
+            &client,
+            Command::Server(ServerCommand::Bodies {
+                ids: ids.iter().map(|s| s.to_string()).collect(),
+                within,
+            }),
+        )
+    };
+    let reply = bodies(&["cue", "wall"], None);
+    assert!(reply.ok, "{:?}", reply.error);
+    let (cue, wall) = (&reply.bodies[0], &reply.bodies[1]);
+    assert_eq!((cue.id.as_str(), cue.shape.as_str(), cue.mass), ("cue", "circle", 2.0));
+    assert_eq!((cue.size, cue.vel), ([2.0, 2.0], [0.0, 0.0]));
+    assert_eq!((wall.group.as_str(), wall.mass, wall.size), ("walls", 0.0, [2.0, 20.0]));
+    let everything = bodies(&[], None);
+    assert_eq!(everything.bodies.len(), 4, "cue, two balls and the wall");
+    let right = bodies(&[], Some([[35.0, 0.0], [40.0, 20.0]]));
+    assert_eq!(
+        right.bodies.iter().map(|b| b.id.as_str()).collect::<Vec<_>>(),
+        ["wall"]
+    );
+    for (reply, needle) in [
+        (bodies(&["ball/1"], None), "no body `ball/1`"),
+        (bodies(&[], Some([[5.0, 0.0], [1.0, 1.0]])), "`within`"),
+    ] {
+        assert!(!reply.ok);
+        let error = reply.error.unwrap_or_default();
+        assert!(error.contains(needle), "{error}");
+    }
     drop(server);
 
     let frames = read_dump(&std::fs::read_to_string(&served).unwrap()).unwrap();

@@ -32,6 +32,15 @@ pub enum ServerCommand {
         #[serde(default)]
         paused: bool,
     },
+    /// Reports bodies as they are at this frame (changes nothing): those named in `ids`,
+    /// else those whose centre lies `within` [[x0, y0], [x1, y1]], else every body; at
+    /// most [`MAX_BODIES_A_REPLY`], in the reply's `bodies`.
+    Bodies {
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        ids: Vec<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        within: Option<[Point; 2]>,
+    },
     /// Loads another scene: `path`, a file name under the server's scenes directory
     /// (`ricochet-server run --scenes DIR`), or `text`, the scene's TOML.
     Load {
@@ -215,6 +224,9 @@ impl Command {
             Command::Server(ServerCommand::Load {
                 path: Some(path), ..
             }) => vec![("path", path)],
+            Command::Server(ServerCommand::Bodies { ids, .. }) => {
+                ids.iter().map(|id| ("ids", id.as_str())).collect()
+            }
             _ => Vec::new(),
         }
     }
@@ -310,6 +322,29 @@ pub struct Reply {
     /// The request's id, when it gave one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub id: Option<String>,
+    /// The bodies a `bodies` command asked for, as they were at `frame`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub bodies: Vec<BodyState>,
+}
+
+/// Bodies a `bodies` reply carries at most: a larger world is asked by ids or `within`.
+pub const MAX_BODIES_A_REPLY: usize = 1000;
+
+/// A body as a `bodies` reply reports it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BodyState {
+    pub id: String,
+    pub group: String,
+    /// `circle` or `rect`.
+    pub shape: String,
+    /// The rectangle's width and height, or the circle's diameter twice.
+    pub size: [f64; 2],
+    pub pos: Point,
+    pub vel: Point,
+    /// 0 for a static body.
+    pub mass: f64,
+    /// It touched something in the last step.
+    pub collided: bool,
 }
 
 impl Reply {
@@ -321,6 +356,7 @@ impl Reply {
             ids: Vec::new(),
             error: Some(error.into()),
             id: None,
+            bodies: Vec::new(),
         }
     }
 }
@@ -540,7 +576,7 @@ mod tests {
         }
         assert_eq!(
             SERVER_COMMANDS,
-            ["pause", "resume", "step", "reset", "load"]
+            ["pause", "resume", "step", "reset", "bodies", "load"]
         );
         assert!(Action::NAMES.contains(&"spawn_particles") && Action::NAMES.contains(&"set"));
         let e = Command::parse(br#"{"do":"fly"}"#).unwrap_err();

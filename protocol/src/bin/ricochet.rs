@@ -30,7 +30,8 @@ spawn_minion at=[x,y] [shape=rect], spawn_dumb_minion at=[x,y], select at=[x,y] 
 drag to=[x,y], deselect, agitate [strength=S], clear group=G,\n\
 spawn_particles preset=fire at=[x,y] [count=N], start_emitter preset=fire count=N at=[x,y],\n\
 set name=NAME value=VALUE. Any body of any scene, by its id: remove body=ID,\n\
-impulse body=ID impulse=[x,y], set_body body=ID [pos=[x,y]] [vel=[x,y]]. Server commands: pause, resume, step [n=N], reset [paused=true],\n\
+impulse body=ID impulse=[x,y], set_body body=ID [pos=[x,y]] [vel=[x,y]]; bodies\n\
+[ids=[\"ID\",...]] [within=[[x0,y0],[x1,y1]]] replies with their state. Server commands: pause, resume, step [n=N], reset [paused=true],\n\
 load path=NAME (a scene file under the server's scenes directory) | text=TOML."
 )]
 struct Cli {

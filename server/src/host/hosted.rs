@@ -311,6 +311,16 @@ impl Hosted {
                     Err(e) => Err(e),
                 }
             }
+            Command::Server(ServerCommand::Bodies { ids, within }) => {
+                match wire::bodies(&self.world, ids, *within) {
+                    Ok(bodies) => {
+                        let mut handled = self.handled(frame, Ok(Vec::new()), 0);
+                        handled.reply.bodies = bodies;
+                        return handled;
+                    }
+                    Err(e) => Err(e),
+                }
+            }
             Command::Server(ServerCommand::Load { path, text }) => self
                 .scene_to_load(path.as_deref(), text.as_deref())
                 .and_then(|(text, name)| self.adopt_scene(text, name))
@@ -347,6 +357,7 @@ impl Hosted {
                     ids,
                     error: None,
                     id: None,
+                    bodies: Vec::new(),
                 }
             }
             Err(error) => {

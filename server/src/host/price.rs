@@ -123,6 +123,10 @@ pub fn model(
                     + particles * SCAN_NS_PER_PARTICLE,
             )
         }
+        // A pass over the bodies, and a line of the reply for each picked.
+        Command::Server(ServerCommand::Bodies { .. }) => {
+            (Kind::Scan, BASE_NS + bodies * SCAN_NS_PER_BODY)
+        }
         Command::Server(_) => (Kind::Base, BASE_NS),
     }
 }

@@ -15,6 +15,8 @@ pub mod stats;
 
 pub use replay::{Replay, Replayed};
 
+use ricochet_protocol::command::{BodyState, MAX_BODIES_A_REPLY};
+use ricochet_protocol::text::short;
 use ricochet_protocol::dump::{BodyRecord, FrameRecord, ParticleRecord, StatsRecord};
 use ricochet_protocol::frame::{
     encode_statics, BodyIn, EmitterIn, FrameEncoder, FrameStats, ParticlesIn,
@@ -305,6 +307,69 @@ pub fn stats_record(world: &World) -> StatsRecord {
         energy_change: s.energy_change,
         residual: s.residual,
     }
+}
+
+/// The bodies a `bodies` command asks for: those named in `ids` (in that order), else
+/// those whose centre lies `within`, else every body; refused, saying why, for an unknown
+/// id, a box that is not one, or more than [`MAX_BODIES_A_REPLY`].
+pub fn bodies(
+    world: &World,
+    ids: &[String],
+    within: Option<[[f64; 2]; 2]>,
+) -> Result<Vec<BodyState>, String> {
+    if ids.len() > MAX_BODIES_A_REPLY {
+        return Err(format!(
+            "`ids` names {} bodies: at most {MAX_BODIES_A_REPLY} a reply",
+            ids.len()
+        ));
+    }
+    let mut picked: Vec<(&Body, &BodyInfo)> = if ids.is_empty() {
+        world.bodies().iter().zip(world.infos()).collect()
+    } else {
+        ids.iter()
+            .map(|id| {
+                world
+                    .body(id)
+                    .zip(world.info(id))
+                    .ok_or_else(|| format!("no body `{}` in this world", short(id, 64)))
+            })
+            .collect::<Result<_, _>>()?
+    };
+    if let Some([lo, hi]) = within {
+        let ok = lo.iter().chain(&hi).all(|v| v.is_finite()) && lo[0] <= hi[0] && lo[1] <= hi[1];
+        if !ok {
+            return Err("`within` must be [[x0, y0], [x1, y1]], finite, x0 <= x1 and y0 <= y1".into());
+        }
+        picked.retain(|(b, _)| {
+            (lo[0]..=hi[0]).contains(&b.pos.x) && (lo[1]..=hi[1]).contains(&b.pos.y)
+        });
+    }
+    if picked.len() > MAX_BODIES_A_REPLY {
+        return Err(format!(
+            "{} bodies match: at most {MAX_BODIES_A_REPLY} a reply (name them in `ids`, or narrow `within`)",
+            picked.len()
+        ));
+    }
+    Ok(picked
+        .into_iter()
+        .map(|(b, info)| {
+            let size = b.shape.size();
+            BodyState {
+                id: info.id.clone(),
+                group: world.group_name(b.group).to_string(),
+                shape: match b.shape {
+                    Shape::Circle { .. } => "circle",
+                    Shape::Rect { .. } => "rect",
+                }
+                .to_string(),
+                size: [size.x, size.y],
+                pos: [b.pos.x, b.pos.y],
+                vel: [b.vel.x, b.vel.y],
+                mass: if b.inv_mass > 0.0 { 1.0 / b.inv_mass } else { 0.0 },
+                collided: b.collided,
+            }
+        })
+        .collect())
 }
 
 /// The engine's action for the wire's `action`: the two have one shape, so the wire form

@@ -287,9 +287,13 @@ impl Journal {
     /// The reply of the command [`Journal::before`] wrote last, if it had an id.
     pub fn replied(&mut self, reply: &Reply) {
         if reply.id.is_some() {
-            self.line(&Line::Replied {
-                replied: reply.clone(),
-            });
+            // The bodies a `bodies` reply reports are the world's: a replay makes them
+            // again, and the journal does not grow by them.
+            let replied = Reply {
+                bodies: Vec::new(),
+                ..reply.clone()
+            };
+            self.line(&Line::Replied { replied });
         }
     }
 }

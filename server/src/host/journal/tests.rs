@@ -148,6 +148,7 @@ fn a_journal_of_version_2_with_commands_written_after_they_ran_still_resumes() {
         ids: Vec::new(),
         error: None,
         id: Some("p".into()),
+        bodies: Vec::new(),
     };
     let line = Line::Command {
         frame,
