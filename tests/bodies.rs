@@ -163,14 +163,24 @@ fn a_users_scene_is_driven_by_its_bodies_ids_and_replays_bit_for_bit() {
     let reply = bodies(&["cue", "wall"], None);
     assert!(reply.ok, "{:?}", reply.error);
     let (cue, wall) = (&reply.bodies[0], &reply.bodies[1]);
-    assert_eq!((cue.id.as_str(), cue.shape.as_str(), cue.mass), ("cue", "circle", 2.0));
+    assert_eq!(
+        (cue.id.as_str(), cue.shape.as_str(), cue.mass),
+        ("cue", "circle", 2.0)
+    );
     assert_eq!((cue.size, cue.vel), ([2.0, 2.0], [0.0, 0.0]));
-    assert_eq!((wall.group.as_str(), wall.mass, wall.size), ("walls", 0.0, [2.0, 20.0]));
+    assert_eq!(
+        (wall.group.as_str(), wall.mass, wall.size),
+        ("walls", 0.0, [2.0, 20.0])
+    );
     let everything = bodies(&[], None);
     assert_eq!(everything.bodies.len(), 4, "cue, two balls and the wall");
     let right = bodies(&[], Some([[35.0, 0.0], [40.0, 20.0]]));
     assert_eq!(
-        right.bodies.iter().map(|b| b.id.as_str()).collect::<Vec<_>>(),
+        right
+            .bodies
+            .iter()
+            .map(|b| b.id.as_str())
+            .collect::<Vec<_>>(),
         ["wall"]
     );
     for (reply, needle) in [

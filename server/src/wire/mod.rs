@@ -16,11 +16,11 @@ pub mod stats;
 pub use replay::{Replay, Replayed};
 
 use ricochet_protocol::command::{BodyState, MAX_BODIES_A_REPLY};
-use ricochet_protocol::text::short;
 use ricochet_protocol::dump::{BodyRecord, FrameRecord, ParticleRecord, StatsRecord};
 use ricochet_protocol::frame::{
     encode_statics, BodyIn, EmitterIn, FrameEncoder, FrameStats, ParticlesIn,
 };
+use ricochet_protocol::text::short;
 
 fn body_in<'a>(world: &'a World, b: &'a Body, info: &'a BodyInfo) -> BodyIn<'a> {
     let size = b.shape.size();
@@ -338,7 +338,9 @@ pub fn bodies(
     if let Some([lo, hi]) = within {
         let ok = lo.iter().chain(&hi).all(|v| v.is_finite()) && lo[0] <= hi[0] && lo[1] <= hi[1];
         if !ok {
-            return Err("`within` must be [[x0, y0], [x1, y1]], finite, x0 <= x1 and y0 <= y1".into());
+            return Err(
+                "`within` must be [[x0, y0], [x1, y1]], finite, x0 <= x1 and y0 <= y1".into(),
+            );
         }
         picked.retain(|(b, _)| {
             (lo[0]..=hi[0]).contains(&b.pos.x) && (lo[1]..=hi[1]).contains(&b.pos.y)
@@ -365,7 +367,11 @@ pub fn bodies(
                 size: [size.x, size.y],
                 pos: [b.pos.x, b.pos.y],
                 vel: [b.vel.x, b.vel.y],
-                mass: if b.inv_mass > 0.0 { 1.0 / b.inv_mass } else { 0.0 },
+                mass: if b.inv_mass > 0.0 {
+                    1.0 / b.inv_mass
+                } else {
+                    0.0
+                },
                 collided: b.collided,
             }
         })
