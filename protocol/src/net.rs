@@ -133,6 +133,16 @@ impl Network {
         .client()
     }
 
+    /// Where this network reaches, for a message: its endpoints, or the configuration
+    /// file that says.
+    pub fn endpoints_described(&self) -> String {
+        match (&self.config, self.connect.is_empty()) {
+            (_, false) => self.connect.join(", "),
+            (Some(file), true) => format!("the endpoints of {}", file.display()),
+            (None, true) => "no endpoint".to_string(),
+        }
+    }
+
     /// The mode's name for logs: as given, or the file's, or peer.
     pub fn mode_name(&self) -> &'static str {
         match (self.mode, &self.config) {

@@ -38,3 +38,18 @@ fn malformed_commands_are_refused_before_sending() {
 fn network_flags_are_checked() {
     refused(&ricochet(&["--mode", "satellite", "worlds"]), "satellite");
 }
+
+#[test]
+fn worlds_with_no_server_says_so() {
+    // A port nothing listens on: no world can answer.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let out = ricochet(&["--connect", &endpoint, "--timeout", "1", "worlds"]);
+    refused(&out, "no world answered within 1.0 s");
+    refused(&out, &endpoint);
+    assert!(out.stdout.is_empty());
+}

@@ -86,7 +86,7 @@ enum Cmd {
         #[arg(long, value_name = "RATE", value_parser = ricochet_protocol::net::parse_bits_per_second)]
         max_bandwidth: Option<f64>,
     },
-    /// List the worlds whose servers are up.
+    /// List the worlds whose servers are up (exit 1, saying so, when none answers).
     Worlds,
     /// Record the applied world commands as an input log (JSON Lines).
     Record {
@@ -150,7 +150,17 @@ fn run(cli: Cli) -> Result<i32> {
     match cli.command {
         Cmd::Worlds => {
             let session = network.open()?;
-            for w in list_worlds(&session, timeout)? {
+            let worlds = list_worlds(&session, timeout)?;
+            if worlds.is_empty() {
+                // Silence would read as "no worlds" and "no server" alike: say which.
+                eprintln!(
+                    "ricochet: no world answered within {:.1} s (is a server up, and reachable at {}?)",
+                    timeout.as_secs_f64(),
+                    network.endpoints_described()
+                );
+                return Ok(1);
+            }
+            for w in worlds {
                 // A world's name is what a peer chose: printed with control characters
                 // escaped, so it cannot drive the terminal.
                 println!("{}", ricochet_protocol::text::short(&w, 256));
