@@ -61,11 +61,9 @@ impl Row {
     }
 
     fn median_us(&self) -> f64 {
-        let mut sorted = self.steps.clone();
-        sorted.sort();
-        sorted
-            .get(sorted.len() / 2)
-            .map_or(0.0, |d| d.as_secs_f64() * 1e6)
+        let mut us: Vec<f64> = self.steps.iter().map(|d| d.as_secs_f64() * 1e6).collect();
+        us.sort_by(f64::total_cmp);
+        crate::percentile(&us, 0.5)
     }
 }
 

@@ -290,8 +290,12 @@ impl Journal {
             // The bodies a `bodies` reply reports are the world's: a replay makes them
             // again, and the journal does not grow by them.
             let replied = Reply {
+                ok: reply.ok,
+                frame: reply.frame,
+                ids: reply.ids.clone(),
+                error: reply.error.clone(),
+                id: reply.id.clone(),
                 bodies: Vec::new(),
-                ..reply.clone()
             };
             self.line(&Line::Replied { replied });
         }
