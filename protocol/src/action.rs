@@ -96,6 +96,19 @@ pub enum Action {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         vel: Option<Point>,
     },
+    /// Adds a body: `body`, a table with the fields of a scene's `[[body]]` (its `pos`,
+    /// or `at`), or `template`, a body the scene names in a `[[template]]`, put at `at`
+    /// (with `vel` if given). The reply names the new body's id.
+    Spawn {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        body: Option<Box<BodySpec>>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        template: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<Point>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vel: Option<Point>,
+    },
     /// Sets one world parameter: `{"do": "set", "name": "gravity", "value": [0, -9.8]}`
     /// (the names and their values: docs/network.md; the server checks both).
     Set {
@@ -106,6 +119,44 @@ pub enum Action {
 
 fn one() -> u32 {
     1
+}
+
+/// A body's shape kind, as scenes and `spawn` name it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeKind {
+    Rect,
+    Circle,
+}
+
+/// A body as `spawn` gives it: the fields of a scene's `[[body]]` but its behaviour,
+/// each optional but `shape` (and `size` for a rect, `radius` for a circle); the server
+/// fills in a scene's defaults (group `default`, mass 1, restitution 0.8, friction 0.3,
+/// a fresh id) and checks every number.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
+    pub shape: ShapeKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pos: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vel: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<Point>,
 }
 
 /// The names a `set` may carry: the `[world]` fields of a scene, in the engine's order

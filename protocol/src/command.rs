@@ -6,6 +6,8 @@
 //! server's clock. [`Command::parse`] tells the two apart and names what is wrong with a
 //! malformed one.
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use crate::text::short;
@@ -49,6 +51,48 @@ pub enum ServerCommand {
         #[serde(default)]
         text: Option<String>,
     },
+    /// Keeps the world's whole state at this frame under `name` (replacing a save of
+    /// that name): bodies, contacts and their warm starts, particles, emitters, the
+    /// random generator, the settings and the scene it came from. The reply's `hash` is
+    /// the state's.
+    Save { name: String },
+    /// Puts the world back as it was saved under `name`: what it does next is bit for bit
+    /// what it did after the save.
+    Restore { name: String },
+    /// Puts the world back at an earlier `frame` of this run, as it was published then
+    /// (before the commands of that frame's boundary), from the history the server keeps;
+    /// refused, saying how far back it reaches, past it.
+    Rewind { frame: u64 },
+    /// The state hash of each kept frame from `from` to `to` (both optional; at most
+    /// [`MAX_HASHES_A_REPLY`] a reply, the latest when more are asked), in the reply's
+    /// `hashes`.
+    Hashes {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        from: Option<u64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        to: Option<u64>,
+    },
+    /// Starts a second world, named `world`, from this one at this frame, served by the
+    /// same server on its own keys, with its own clock and budgets; `settings` (`[world]`
+    /// field names and values, as `set` takes them) are applied to it first.
+    Fork {
+        world: String,
+        #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+        settings: BTreeMap<String, serde_json::Value>,
+    },
+    /// Stops serving this world, when it is a fork (the server's own world stops with the
+    /// server).
+    Close,
+}
+
+/// Frame hashes a `hashes` reply carries at most.
+pub const MAX_HASHES_A_REPLY: usize = 1000;
+
+/// A frame and the hash of the world's state after it (16 hexadecimal digits of XXH3-64).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FrameHash {
+    pub frame: u64,
+    pub hash: String,
 }
 
 fn one_step() -> u32 {
@@ -218,6 +262,17 @@ impl Command {
             Command::World(Action::Select {
                 group: Some(group), ..
             }) => vec![("group", group)],
+            Command::World(Action::Spawn { body, template, .. }) => {
+                let mut names = Vec::new();
+                if let Some(template) = template {
+                    names.push(("template", template.as_str()));
+                }
+                if let Some(body) = body {
+                    names.extend(body.id.as_deref().map(|id| ("body.id", id)));
+                    names.extend(body.group.as_deref().map(|g| ("body.group", g)));
+                }
+                names
+            }
             Command::World(
                 Action::SpawnParticles { preset, .. } | Action::StartEmitter { preset, .. },
             ) => vec![("preset", preset)],
@@ -226,6 +281,14 @@ impl Command {
             }) => vec![("path", path)],
             Command::Server(ServerCommand::Bodies { ids, .. }) => {
                 ids.iter().map(|id| ("ids", id.as_str())).collect()
+            }
+            Command::Server(ServerCommand::Save { name } | ServerCommand::Restore { name }) => {
+                vec![("name", name)]
+            }
+            Command::Server(ServerCommand::Fork { world, settings }) => {
+                let mut names = vec![("world", world.as_str())];
+                names.extend(settings.keys().map(|k| ("settings", k.as_str())));
+                names
             }
             _ => Vec::new(),
         }
@@ -308,7 +371,7 @@ impl<'de> serde::de::Visitor<'de> for DistinctVisitor {
 }
 
 /// The reply to a command sent as a request.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Reply {
     pub ok: bool,
     /// The frame the command took effect in: it is applied before step `frame + 1`.
@@ -325,6 +388,12 @@ pub struct Reply {
     /// The bodies a `bodies` command asked for, as they were at `frame`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub bodies: Vec<BodyState>,
+    /// The state hash of `frame` (a `save`, `restore` or `rewind`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hash: Option<String>,
+    /// The frames and state hashes a `hashes` command asked for.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub hashes: Vec<FrameHash>,
 }
 
 /// Bodies a `bodies` reply carries at most: a larger world is asked by ids or `within`.
@@ -353,10 +422,8 @@ impl Reply {
         Reply {
             ok: false,
             frame,
-            ids: Vec::new(),
             error: Some(error.into()),
-            id: None,
-            bodies: Vec::new(),
+            ..Reply::default()
         }
     }
 }
@@ -399,6 +466,18 @@ pub struct WorldInfo {
     /// The frame streams and the bytes each sent over the last whole second.
     #[serde(default)]
     pub streams: Vec<StreamRate>,
+    /// The bodies the scene names for `spawn` (its `[[template]]` tables).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub templates: Vec<String>,
+    /// The names `restore` takes, each with the frame it was saved at.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub saves: Vec<(String, u64)>,
+    /// The first frame `rewind` reaches (absent when the server keeps no history).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rewinds_to: Option<u64>,
+    /// The world this one was forked from, when it is a fork.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forked_from: Option<String>,
 }
 
 /// A frame stream's rate.
@@ -576,7 +655,10 @@ mod tests {
         }
         assert_eq!(
             SERVER_COMMANDS,
-            ["pause", "resume", "step", "reset", "bodies", "load"]
+            [
+                "pause", "resume", "step", "reset", "bodies", "load", "save", "restore", "rewind",
+                "hashes", "fork", "close"
+            ]
         );
         assert!(Action::NAMES.contains(&"spawn_particles") && Action::NAMES.contains(&"set"));
         let e = Command::parse(br#"{"do":"fly"}"#).unwrap_err();

@@ -29,9 +29,15 @@ World commands: press/release dir=up|down|left|right, fire_dye_pack at=[x,y],\n\
 spawn_minion at=[x,y] [shape=rect], spawn_dumb_minion at=[x,y], select at=[x,y] [group=G],\n\
 drag to=[x,y], deselect, agitate [strength=S], clear group=G,\n\
 spawn_particles preset=fire at=[x,y] [count=N], start_emitter preset=fire count=N at=[x,y],\n\
-set name=NAME value=VALUE. Any body of any scene, by its id: remove body=ID,\n\
-impulse body=ID impulse=[x,y], set_body body=ID [pos=[x,y]] [vel=[x,y]]; bodies\n\
-[ids=[\"ID\",...]] [within=[[x0,y0],[x1,y1]]] replies with their state. Server commands: pause, resume, step [n=N], reset [paused=true],\n\
+set name=NAME value=VALUE.\n\n\
+Any body of any scene: spawn body={\"shape\":\"circle\",\"radius\":1,\"pos\":[x,y],...}\n\
+(a scene's [[body]] fields) | spawn template=NAME at=[x,y] [vel=[x,y]], remove body=ID,\n\
+impulse body=ID impulse=[x,y], set_body body=ID [pos=[x,y]] [vel=[x,y]];\n\
+bodies [ids=[\"ID\",...]] [within=[[x0,y0],[x1,y1]]] replies with their state.\n\n\
+Time: save name=N, restore name=N, rewind frame=F, hashes [from=F] [to=F] (each frame's\n\
+state hash), fork world=NAME [settings={\"substeps\":4}] (a second world from this frame),\n\
+close (stops a fork).\n\n\
+Server commands: pause, resume, step [n=N], reset [paused=true],\n\
 load path=NAME (a scene file under the server's scenes directory) | text=TOML."
 )]
 struct Cli {

@@ -89,6 +89,19 @@ pub enum Action {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         vel: Option<Point>,
     },
+    /// Adds a body: `body`, a table with the fields of a scene's `[[body]]` (its `pos`,
+    /// or `at`), or `template`, a body the scene names in a `[[template]]`, put at `at`
+    /// (with `vel` if given). The reply names the new body's id.
+    Spawn {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        body: Option<Box<BodySpec>>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        template: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<Point>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        vel: Option<Point>,
+    },
     /// Sets one world parameter, named and typed by [`Setting`]:
     /// `{"do": "set", "name": "gravity", "value": [0, -9.8]}`.
     Set(Setting),
@@ -96,6 +109,87 @@ pub enum Action {
 
 fn one() -> u32 {
     1
+}
+
+/// A body's shape kind, as scenes and `spawn` name it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShapeKind {
+    Rect,
+    Circle,
+}
+
+/// A body as a `spawn` or a scene's `[[template]]` gives it: the fields of a scene's
+/// `[[body]]` but its behaviour, each optional but `shape` (and `size` or `radius`),
+/// with a scene's defaults (group `default`, mass 1, restitution 0.8, friction 0.3).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
+    pub shape: ShapeKind,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radius: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pos: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vel: Option<Point>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub restitution: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity: Option<Point>,
+}
+
+impl BodySpec {
+    /// The body this gives, named `id`, at its `pos` (the origin if none), with a
+    /// scene's defaults for what it leaves out; every number checked.
+    pub fn def(&self, id: String) -> Result<crate::dynamics::body::BodyDef, ActionError> {
+        use crate::geometry::Shape;
+        use glam::DVec2;
+        let bad = |field: &'static str, reason: &str| ActionError::BadArgument {
+            field,
+            reason: reason.to_string(),
+        };
+        let shape = match (self.shape, self.size, self.radius) {
+            (ShapeKind::Rect, Some([w, h]), None) => Shape::rect(w, h),
+            (ShapeKind::Circle, None, Some(r)) => Shape::circle(r),
+            (ShapeKind::Rect, None, _) => {
+                return Err(bad("size", "a rect needs size = [width, height]"))
+            }
+            (ShapeKind::Rect, Some(_), Some(_)) => {
+                return Err(bad("radius", "a rect has a size, not a radius"))
+            }
+            (ShapeKind::Circle, _, None) => return Err(bad("radius", "a circle needs radius = r")),
+            (ShapeKind::Circle, Some(_), Some(_)) => {
+                return Err(bad("size", "a circle has a radius, not a size"))
+            }
+        };
+        let base = crate::dynamics::body::BodyDef::default();
+        let def = crate::dynamics::body::BodyDef {
+            id,
+            group: self.group.clone().unwrap_or(base.group),
+            shape,
+            pos: self.pos.map_or(DVec2::ZERO, DVec2::from),
+            vel: self.vel.map_or(DVec2::ZERO, DVec2::from),
+            mass: self.mass.unwrap_or(base.mass),
+            restitution: self.restitution.unwrap_or(base.restitution),
+            friction: self.friction.unwrap_or(base.friction),
+            gravity: self.gravity.map(DVec2::from),
+        };
+        def.validate().map_err(|e| ActionError::BadArgument {
+            field: e.field,
+            reason: e.reason,
+        })?;
+        Ok(def)
+    }
 }
 
 impl Action {
@@ -125,6 +219,8 @@ pub enum ActionError {
     UnknownGroup(String),
     #[error("no body `{0}` in this world")]
     UnknownBody(String),
+    #[error("unknown template `{name}` (known: {known})")]
+    UnknownTemplate { name: String, known: String },
     #[error(transparent)]
     Config(#[from] ConfigError),
     #[error(transparent)]

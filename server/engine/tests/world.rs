@@ -645,3 +645,142 @@ fn bodies_are_struck_moved_and_removed_by_id() {
     assert!(w.body("box").is_none());
     w.step();
 }
+
+/// `spawn`: a body of the client's own, given whole or named by the scene's
+/// `[[template]]`, collides as a scene's body would; refusals name the field and change
+/// nothing.
+#[test]
+fn bodies_are_spawned_whole_or_from_a_template_and_refused_naming_the_field() {
+    use ricochet_engine::action::{ActionError, BodySpec, ShapeKind};
+    let text = format!(
+        "{PLATFORM_AND_BOX}\n[limits]\nbodies = 5\n[[template]]\nname = \"ball\"\ngroup = \"boxes\"\nshape = \"circle\"\nradius = 1\nmass = 2\n"
+    );
+    let mut w = scene::parse(&text, Path::new("box.toml"), &[]).unwrap();
+    assert_eq!(w.template_names().collect::<Vec<_>>(), ["ball"]);
+    let ball = w
+        .apply(&Action::Spawn {
+            body: None,
+            template: Some("ball".into()),
+            at: Some([10.0, 6.0]),
+            vel: Some([0.0, -1.0]),
+        })
+        .unwrap()
+        .ids;
+    assert_eq!(ball, ["ball-1"]);
+    let spec = BodySpec {
+        id: Some("cue".into()),
+        group: Some("boxes".into()),
+        shape: ShapeKind::Rect,
+        size: Some([2.0, 2.0]),
+        radius: None,
+        pos: Some([15.0, 8.0]),
+        vel: None,
+        mass: Some(3.0),
+        restitution: Some(0.0),
+        friction: None,
+        gravity: None,
+    };
+    let cue = w
+        .apply(&Action::Spawn {
+            body: Some(Box::new(spec.clone())),
+            template: None,
+            at: None,
+            vel: None,
+        })
+        .unwrap()
+        .ids;
+    assert_eq!(cue, ["cue"]);
+    assert_eq!(1.0 / w.body("cue").unwrap().inv_mass, 3.0);
+    w.step_n(240);
+    // Both landed on the platform (its top at y = 1), neither went through.
+    assert!((w.body("ball-1").unwrap().pos.y - 2.0).abs() < 0.05);
+    assert!((w.body("cue").unwrap().pos.y - 2.0).abs() < 0.05);
+
+    let before = w.state_hash();
+    let spawn =
+        |body: Option<BodySpec>, template: Option<&str>, at: Option<[f64; 2]>| Action::Spawn {
+            body: body.map(Box::new),
+            template: template.map(str::to_string),
+            at,
+            vel: None,
+        };
+    let field = |e: ActionError| match e {
+        ActionError::BadArgument { field, .. } => field.to_string(),
+        other => other.to_string(),
+    };
+    for (action, needle) in [
+        (
+            spawn(None, Some("bal"), Some([1.0, 5.0])),
+            "unknown template `bal`",
+        ),
+        (spawn(None, Some("ball"), None), "at"),
+        (spawn(None, Some("ball"), Some([1.0, 500.0])), "at"),
+        (spawn(Some(spec.clone()), None, None), "id"),
+        (spawn(Some(spec.clone()), Some("ball"), None), "template"),
+        (spawn(None, None, Some([1.0, 5.0])), "body"),
+        (
+            spawn(
+                Some(BodySpec {
+                    id: None,
+                    radius: Some(-1.0),
+                    shape: ShapeKind::Circle,
+                    size: None,
+                    ..spec.clone()
+                }),
+                None,
+                None,
+            ),
+            "radius",
+        ),
+        (
+            spawn(
+                Some(BodySpec {
+                    id: None,
+                    pos: None,
+                    ..spec.clone()
+                }),
+                None,
+                Some([-5.0, 5.0]),
+            ),
+            "at",
+        ),
+    ] {
+        let e = field(w.apply(&action).unwrap_err());
+        assert!(e.contains(needle), "{action:?}: {e}");
+    }
+    assert_eq!(w.state_hash(), before, "a refusal changed the world");
+    // The fifth body fits the scene's limit of 5, the sixth does not.
+    w.apply(&spawn(None, Some("ball"), Some([30.0, 5.0])))
+        .unwrap();
+    let e = w
+        .apply(&spawn(None, Some("ball"), Some([40.0, 5.0])))
+        .unwrap_err();
+    assert!(e.to_string().contains("bodies"), "{e}");
+    assert_eq!(w.bodies().len(), 5);
+}
+
+/// A scene's `[[template]]` is checked as a body is, naming the table and field.
+#[test]
+fn a_bad_template_is_refused_naming_its_table_and_field() {
+    for (table, needle) in [
+        ("shape = \"circle\"\nradius = 1\n", "template[0].name"),
+        (
+            "name = \"t\"\nshape = \"circle\"\nradius = -1\n",
+            "template[0].radius",
+        ),
+        (
+            "name = \"t\"\nshape = \"circle\"\nradius = 1\nsiz = 3\n",
+            "template[0].siz",
+        ),
+        (
+            "name = \"t\"\nshape = \"circle\"\nradius = 1\npos = [1, 2]\n",
+            "template[0].pos",
+        ),
+    ] {
+        let text = format!("{PLATFORM_AND_BOX}\n[[template]]\n{table}");
+        let e = scene::parse(&text, Path::new("t.toml"), &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(needle), "{table}: {e}");
+    }
+}

@@ -28,6 +28,8 @@ pub(super) struct Boundary<'a> {
     pub deferred: &'a mut Vec<Deferred>,
     pub journal: &'a mut Option<Journal>,
     pub outbox: &'a Outbox,
+    /// The world's place among the server's (`fork`, `close`).
+    pub slot: Option<&'a super::worlds::Slot>,
 }
 
 /// Applies one command or request at the frame boundary: a retried id gets its first
@@ -41,6 +43,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
         deferred,
         journal,
         outbox,
+        slot,
     } = at;
     let Incoming {
         payload,
@@ -75,6 +78,10 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
                 mut reply,
                 due_at_step,
             } = match &parsed {
+                // Starting or stopping a world changes nothing in this one: not journaled.
+                Ok(Command::Server(
+                    command @ (ServerCommand::Fork { .. } | ServerCommand::Close),
+                )) if slot.is_some() => slot.expect("matched").handle(host, command),
                 Ok(command) => match journal.as_mut() {
                     None => host.handle(command),
                     Some(journal) => {

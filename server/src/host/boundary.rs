@@ -29,6 +29,7 @@ impl Serving {
                     deferred: &mut self.deferred,
                     journal: &mut self.journal,
                     outbox: &self.wiring.outbox,
+                    slot: self.slot.as_ref(),
                 },
             );
             if self.host.stepping.fresh {

@@ -14,6 +14,7 @@ use ricochet_protocol::command::{
     Action, Command, Health, Reply, ServerCommand, WorldInfo, MAX_ERROR_BYTES,
 };
 
+use super::travel::{self, Travel};
 use super::HostOptions;
 use crate::scenes::{read_scene, resolve_scene};
 
@@ -46,6 +47,10 @@ pub struct Hosted {
     pub accounts: Accounts,
     /// The setting picked for the scene's accuracy target, and why.
     pub accuracy: Option<String>,
+    /// Saves, the history `rewind` goes back through, and the frames' state hashes.
+    pub travel: Travel,
+    /// The world this one was forked from, when it is a fork.
+    pub forked_from: Option<String>,
 }
 
 /// The scene a world was made from, and the overrides it runs under.
@@ -126,6 +131,8 @@ impl Hosted {
         opts: &HostOptions,
     ) -> Self {
         Hosted {
+            travel: Travel::new(&world, opts.travel),
+            forked_from: None,
             world,
             source: Source {
                 text: scene_text,
@@ -184,6 +191,10 @@ impl Hosted {
             health: Some(self.accounts.health.clone()),
             accuracy: self.accuracy.clone(),
             streams: self.wire.streams.rates(),
+            templates: self.world.template_names().map(str::to_string).collect(),
+            saves: self.travel.saves(),
+            rewinds_to: self.travel.rewinds_to(),
+            forked_from: self.forked_from.clone(),
         }
     }
 
@@ -265,7 +276,10 @@ impl Hosted {
                 }
                 .and_then(|()| wire::to_engine(action))
                 .and_then(|a| self.world.apply(&a).map_err(|e| e.to_string()))
-                .map(|o| o.ids)
+                .map(|o| {
+                    self.travel.applied(frame, command);
+                    o.ids
+                })
             }
             Command::Server(ServerCommand::Pause) => {
                 self.stepping.paused = true;
@@ -305,6 +319,7 @@ impl Hosted {
                 }) {
                     Ok(world) => {
                         self.replace_world(world);
+                        self.travel.start_over(&self.world);
                         self.stepping.paused = *paused;
                         Ok(Vec::new())
                     }
@@ -325,8 +340,58 @@ impl Hosted {
                 .scene_to_load(path.as_deref(), text.as_deref())
                 .and_then(|(text, name)| self.adopt_scene(text, name))
                 .map(|()| Vec::new()),
+            Command::Server(ServerCommand::Save { name }) => {
+                match self
+                    .travel
+                    .save(name, &self.world, &self.source.text, &self.source.name)
+                {
+                    Ok(hash) => return self.with_hash(frame, hash),
+                    Err(e) => Err(e),
+                }
+            }
+            Command::Server(ServerCommand::Restore { name }) => {
+                match self.travel.restore(name, &self.rules.limits) {
+                    Ok((world, saved)) => {
+                        let (text, scene) = (saved.scene_text.clone(), saved.scene_name.clone());
+                        self.source.text = text;
+                        self.source.name = scene;
+                        self.replace_world(world);
+                        self.travel.start_over(&self.world);
+                        let hash = self.world.state_hash();
+                        return self.with_hash(self.world.frame(), hash);
+                    }
+                    Err(e) => Err(e),
+                }
+            }
+            Command::Server(ServerCommand::Rewind { frame: to }) => {
+                match self.travel.rewind(*to, &self.world, &self.rules.limits) {
+                    Ok(world) => {
+                        self.replace_world(world);
+                        let hash = self.world.state_hash();
+                        return self.with_hash(self.world.frame(), hash);
+                    }
+                    Err(e) => Err(e),
+                }
+            }
+            Command::Server(ServerCommand::Hashes { from, to }) => {
+                let mut handled = self.handled(frame, Ok(Vec::new()), 0);
+                handled.reply.hashes = self.travel.hashes(*from, *to);
+                return handled;
+            }
+            // The serving loop starts and stops worlds; a host alone (a replay, a test)
+            // has none to start.
+            Command::Server(ServerCommand::Fork { .. } | ServerCommand::Close) => {
+                Err("this host serves no other worlds".to_string())
+            }
         };
         self.handled(frame, result, due_at_step)
+    }
+
+    /// An accepted command's reply, with the state hash of `frame`.
+    fn with_hash(&mut self, frame: u64, hash: u64) -> Handled {
+        let mut handled = self.handled(frame, Ok(Vec::new()), 0);
+        handled.reply.hash = Some(travel::hex(hash));
+        handled
     }
 
     /// A `load` whose scene was read already (a journaled load carries its text).
@@ -334,6 +399,11 @@ impl Hosted {
         let frame = self.world.frame();
         let result = self.adopt_scene(text, name).map(|()| Vec::new());
         self.handled(frame, result, 0)
+    }
+
+    /// A command accepted that changed nothing the reply shows.
+    pub fn accepted(&mut self, frame: u64) -> Handled {
+        self.handled(frame, Ok(Vec::new()), 0)
     }
 
     /// A command refused before the world saw it (no scene to load, no journal).
@@ -355,9 +425,7 @@ impl Hosted {
                     ok: true,
                     frame,
                     ids,
-                    error: None,
-                    id: None,
-                    bodies: Vec::new(),
+                    ..Reply::default()
                 }
             }
             Err(error) => {
@@ -401,6 +469,7 @@ impl Hosted {
         self.source.text = text;
         self.source.name = name;
         self.replace_world(world);
+        self.travel.start_over(&self.world);
         Ok(())
     }
 
@@ -408,6 +477,7 @@ impl Hosted {
         let t = Instant::now();
         self.world.step();
         self.stepping.last_step_ms = t.elapsed().as_secs_f32() * 1e3;
+        self.travel.stepped(&self.world);
         self.accounts.health.frames += 1;
     }
 
@@ -433,6 +503,13 @@ fn adds(action: &Action, limits: &Limits) -> (u64, u64, u64) {
         Action::SpawnMinion { .. }
         | Action::SpawnDumbMinion { .. }
         | Action::FireDyePack { .. } => (1, NAME_BYTES, 0),
+        // A body of the client's own: its id and group as long as it names them.
+        Action::Spawn { body, template, .. } => {
+            let named = body.as_ref().map_or(0, |b| {
+                b.id.as_ref().map_or(0, String::len) + b.group.as_ref().map_or(0, String::len)
+            }) + template.as_ref().map_or(0, String::len);
+            (1, NAME_BYTES.max(named as u64 + 16), 0)
+        }
         _ => (0, 0, 0),
     }
 }

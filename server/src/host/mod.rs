@@ -40,8 +40,10 @@ mod router;
 mod serve;
 mod start;
 pub mod streams;
+pub mod travel;
 mod upkeep;
 mod wiring;
+pub mod worlds;
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -160,6 +162,10 @@ pub struct HostOptions {
     /// Where measures for accuracy targets are cached (the default cache directory if
     /// not given).
     pub accuracy_cache: Option<PathBuf>,
+    /// How much time travel the host keeps: saves, history, frame hashes ([`travel`]).
+    pub travel: travel::TravelLimits,
+    /// Worlds served at most, this one and its forks ([`worlds`]).
+    pub max_worlds: usize,
 }
 
 impl HostOptions {
@@ -187,6 +193,8 @@ impl HostOptions {
             checkpoints: Default::default(),
             accuracy: None,
             accuracy_cache: None,
+            travel: Default::default(),
+            max_worlds: 4,
         }
     }
 }
@@ -212,5 +220,6 @@ pub fn run(opts: HostOptions) -> Result<()> {
         paused = started.host.stepping.paused,
         "serving"
     );
-    Serving::new(started, wiring, publisher).run()
+    let (_worlds, slot) = worlds::Worlds::new(session.clone(), opts);
+    Serving::new(started, wiring, publisher).in_slot(slot).run()
 }

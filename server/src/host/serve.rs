@@ -18,6 +18,7 @@ use super::queries::StateCache;
 use super::start::Started;
 use super::upkeep::Upkeep;
 use super::wiring::Wiring;
+use super::worlds::Slot;
 use super::HostOptions;
 
 /// A world being served, and everything the loop keeps between passes.
@@ -34,6 +35,8 @@ pub(super) struct Serving {
     pub budgets: Budgets,
     pub state: StateCache,
     pub upkeep: Upkeep,
+    /// Its place among the worlds this server serves (`fork`, `close`).
+    pub slot: Option<Slot>,
 }
 
 impl Serving {
@@ -57,7 +60,14 @@ impl Serving {
             deferred: Vec::new(),
             state: StateCache::default(),
             upkeep: Upkeep::new(),
+            slot: None,
         }
+    }
+
+    /// Served in `slot`, among the worlds of its server.
+    pub fn in_slot(mut self, slot: Slot) -> Serving {
+        self.slot = Some(slot);
+        self
     }
 
     /// Serves until `max_frames` (or forever).
@@ -81,6 +91,9 @@ impl Serving {
                 self.host.world.config.dt,
                 was_paused && !self.host.stepping.paused,
             );
+            if self.slot.as_ref().is_some_and(Slot::stopping) {
+                return Ok(());
+            }
             if self
                 .opts
                 .max_frames

@@ -451,6 +451,9 @@ mod tests {
             r#"{"do":"set_body","body":"cue","pos":[1,2]}"#,
             r#"{"do":"set_body","body":"cue","vel":[0,0.5]}"#,
             r#"{"do":"set_body","body":"cue","pos":[1,2],"vel":[3,4]}"#,
+            r#"{"do":"spawn","template":"ball","at":[1,2],"vel":[3,4]}"#,
+            r#"{"do":"spawn","body":{"shape":"circle","radius":0.5,"pos":[1,2]}}"#,
+            r#"{"do":"spawn","body":{"id":"cue","group":"balls","shape":"rect","size":[1,2],"vel":[0,1],"mass":2,"restitution":1,"friction":0,"gravity":[0,0]},"at":[3,4]}"#,
             r#"{"do":"set","name":"gravity","value":[0.0,-9.8]}"#,
             r#"{"do":"set","name":"solver","value":"relaxation"}"#,
         ] {

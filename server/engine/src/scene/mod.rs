@@ -32,6 +32,12 @@
 //! [[interact]]
 //! a = "hero"
 //! b = "platforms"              # "particles" names the particle side
+//!
+//! [[template]]                 # a body `spawn` may name: {"do":"spawn","template":"ball","at":[x,y]}
+//! name = "ball"
+//! group = "hero"
+//! shape = "circle"
+//! radius = 1
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -242,6 +248,42 @@ pub fn parse_with(
                 };
                 ctx.field_error(&table, raw.span(), field, &err.to_string())
             })?;
+    }
+
+    for (i, raw) in scene.template.iter().enumerate() {
+        let table = format!("template[{i}]");
+        let span = raw.span();
+        let mut fields = raw.get_ref().clone();
+        let name = match fields.remove("name") {
+            Some(toml::Value::String(name)) => name,
+            Some(_) => return Err(ctx.field_error(&table, span, "name", "must be a string")),
+            None => {
+                return Err(ctx.field_error(
+                    &table,
+                    span,
+                    "name",
+                    "is needed: the name `spawn` gives as `template`",
+                ))
+            }
+        };
+        let spec: crate::action::BodySpec =
+            toml::Value::Table(fields)
+                .try_into()
+                .map_err(|e: toml::de::Error| {
+                    let message = unquoted(e.message().trim());
+                    let field = backticked(&message)
+                        .filter(|k| is_name(k))
+                        .unwrap_or("name")
+                        .to_string();
+                    ctx.field_error(&table, span.clone(), &field, &message)
+                })?;
+        world.add_template(&name, spec).map_err(|e| {
+            let field = match &e {
+                crate::action::ActionError::BadArgument { field, .. } => *field,
+                _ => "name",
+            };
+            ctx.field_error(&table, span.clone(), field, &e.to_string())
+        })?;
     }
 
     for (i, raw) in scene.interact.iter().enumerate() {

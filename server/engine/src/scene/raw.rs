@@ -30,6 +30,10 @@ pub(super) struct SceneFile {
     pub(super) emitter: Vec<Spanned<RawEmitter>>,
     #[serde(default)]
     pub(super) interact: Vec<Spanned<RawInteraction>>,
+    /// Bodies named for `spawn`: a `name` and a body's fields (read as
+    /// [`crate::action::BodySpec`]).
+    #[serde(default)]
+    pub(super) template: Vec<Spanned<toml::Table>>,
     /// What a run of the scene is expected to hold (see [`crate::criteria`]).
     #[serde(default)]
     pub(super) criteria: Option<Spanned<crate::criteria::Criteria>>,

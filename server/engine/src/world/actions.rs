@@ -5,7 +5,7 @@ use glam::DVec2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::action::{Action, ActionError, ActionOutcome, MinionShape};
+use crate::action::{Action, ActionError, ActionOutcome, BodySpec, MinionShape, Point};
 use crate::behavior::{self, Behavior};
 use crate::dynamics::body::BodyDef;
 use crate::dynamics::config::WorldConfig;
@@ -152,11 +152,132 @@ impl World {
                     }
                 }
             }
+            Action::Spawn {
+                body,
+                template,
+                at,
+                vel,
+            } => {
+                self.spawn_def(body.as_deref(), template.as_deref(), *at, *vel)?;
+            }
             Action::Set(setting) => {
                 self.config_after(setting)?;
             }
         }
         Ok(())
+    }
+
+    /// The body a `spawn` adds, checked whole (shape, numbers, the world's bounds, its
+    /// limits, a free id); with the prefix of a fresh id to give it when it names none.
+    fn spawn_def(
+        &self,
+        body: Option<&BodySpec>,
+        template: Option<&str>,
+        at: Option<Point>,
+        vel: Option<Point>,
+    ) -> Result<(crate::dynamics::body::BodyDef, Option<String>), ActionError> {
+        let bad = |field: &'static str, reason: String| ActionError::BadArgument { field, reason };
+        let (mut spec, prefix) = match (body, template) {
+            (Some(b), None) => (b.clone(), "body".to_string()),
+            (None, Some(name)) => match self.templates.get(name) {
+                Some(t) => (t.clone(), name.to_string()),
+                None => {
+                    return Err(ActionError::UnknownTemplate {
+                        name: short(name, MAX_ECHO),
+                        known: short(
+                            &self
+                                .templates
+                                .keys()
+                                .cloned()
+                                .collect::<Vec<_>>()
+                                .join(", "),
+                            4 * MAX_ECHO,
+                        ),
+                    })
+                }
+            },
+            (Some(_), Some(_)) => {
+                return Err(bad(
+                    "template",
+                    "is given with `body`: spawn one or the other".into(),
+                ))
+            }
+            (None, None) => {
+                return Err(bad("body", "or `template` is needed: what to spawn".into()))
+            }
+        };
+        if let Some(at) = at {
+            point("at", at)?;
+            if spec.pos.is_some() && body.is_some() {
+                return Err(bad(
+                    "at",
+                    "is given with the body's own `pos`: give one of the two".into(),
+                ));
+            }
+            spec.pos = Some(at);
+        } else if template.is_some() {
+            return Err(bad(
+                "at",
+                "is needed: where to put the template's body".into(),
+            ));
+        }
+        if let Some(vel) = vel {
+            point("vel", vel)?;
+            spec.vel = Some(vel);
+        }
+        let fresh = match &spec.id {
+            Some(id) if self.by_id.contains_key(id) => {
+                return Err(bad(
+                    "id",
+                    format!("a body `{}` is in the world already", short(id, MAX_ECHO)),
+                ))
+            }
+            Some(_) => None,
+            None => Some(prefix),
+        };
+        let def = spec.def(spec.id.clone().unwrap_or_default())?;
+        let [lo, hi] = self.config.bounds;
+        if !(def.pos.cmpge(lo).all() && def.pos.cmple(hi).all()) {
+            return Err(bad(
+                if at.is_some() { "at" } else { "pos" },
+                format!(
+                    "{} is outside the world's bounds, [{}, {}] to [{}, {}]",
+                    def.pos, lo.x, lo.y, hi.x, hi.y
+                ),
+            ));
+        }
+        self.check_new_bodies(1)?;
+        self.check_new_group(&def.group)?;
+        Ok((def, fresh))
+    }
+
+    /// Adds a body the scene names `name` for `spawn` (a `[[template]]`): its numbers
+    /// checked as a spawned body's, at most [`MAX_TEMPLATES`] templates.
+    pub fn add_template(&mut self, name: &str, spec: BodySpec) -> Result<(), ActionError> {
+        let bad = |field: &'static str, reason: String| ActionError::BadArgument { field, reason };
+        if name.is_empty() || name.len() > MAX_ECHO {
+            return Err(bad("name", format!("must be 1 to {MAX_ECHO} bytes")));
+        }
+        if self.templates.contains_key(name) {
+            return Err(bad("name", format!("`{name}` names two templates")));
+        }
+        if self.templates.len() >= MAX_TEMPLATES {
+            return Err(bad("name", format!("more than {MAX_TEMPLATES} templates")));
+        }
+        if spec.id.is_some() || spec.pos.is_some() {
+            return Err(bad(
+                if spec.id.is_some() { "id" } else { "pos" },
+                "a template has none: each spawn gives a fresh id and its own `at`".into(),
+            ));
+        }
+        spec.def(name.to_string())?;
+        self.templates.insert(name.to_string(), spec);
+        Ok(())
+    }
+
+    /// The names of the templates `spawn` may name, in order.
+    pub fn template_names(&self) -> impl Iterator<Item = &str> {
+        self.templates.keys().map(String::as_str)
     }
 
     /// The parameters `setting` would give: checked, and within the work limit.
@@ -379,6 +500,19 @@ impl World {
                 });
                 none
             }
+            Action::Spawn {
+                body,
+                template,
+                at,
+                vel,
+            } => {
+                let (mut def, fresh) =
+                    self.spawn_def(body.as_deref(), template.as_deref(), *at, *vel)?;
+                if let Some(prefix) = fresh {
+                    def.id = self.fresh_id(&prefix);
+                }
+                self.spawn(def, Behavior::None)
+            }
             Action::Set(setting) => {
                 let before = self.config.seed;
                 self.config = self.config_after(setting)?;
@@ -417,6 +551,9 @@ impl World {
 
 /// Bytes of a client's text (a group or preset name) echoed in a refusal at most.
 pub const MAX_ECHO: usize = 64;
+
+/// Templates a scene may name at most.
+pub const MAX_TEMPLATES: usize = 256;
 
 /// A point argument: finite and within the engine's coordinates.
 fn point(field: &'static str, p: [f64; 2]) -> Result<DVec2, ActionError> {

@@ -44,8 +44,9 @@ impl World {
         out
     }
 
-    /// The world a checkpoint holds, under `limits` (the operator's, whatever limits the
-    /// saved world ran under). Damaged or foreign bytes are refused, naming why.
+    /// The world a checkpoint holds, under the limits it ran under where they are within
+    /// `limits` (the operator's), else under `limits`. Damaged or foreign bytes are
+    /// refused, naming why.
     pub fn restore(bytes: &[u8], limits: Limits) -> Result<World, CheckpointError> {
         if bytes.len() < 8 || &bytes[..3] != MAGIC {
             return Err(CheckpointError::Magic);
@@ -60,7 +61,12 @@ impl World {
         }
         let mut world: World = ciborium::from_reader(body)
             .map_err(|e| CheckpointError::Decode(super::short(&e.to_string(), 200)))?;
-        world.limits = limits;
+        // The saved world's own limits (a scene's `[limits]` lowers the operator's) hold
+        // where they are within the operator's; the operator's where any is above.
+        let saved = std::mem::replace(&mut world.limits, limits);
+        if saved.above(&world.limits).is_none() {
+            world.limits = saved;
+        }
         Ok(world)
     }
 }

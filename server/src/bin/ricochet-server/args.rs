@@ -10,6 +10,7 @@ use ricochet_protocol::net::NetworkArgs;
 use ricochet_server::host::budget::BudgetLimits;
 use ricochet_server::host::inbox::InboxLimits;
 use ricochet_server::host::journal::Checkpoints;
+use ricochet_server::host::travel::TravelLimits;
 use ricochet_server::host::{HostOptions, DEFAULT_MAX_FRAME_BYTES};
 
 #[derive(Parser)]
@@ -144,6 +145,23 @@ pub struct RunArgs {
     /// resume replays, whatever the run's length.
     #[arg(long, default_value_t = Checkpoints::default().replay_ms, value_name = "MS")]
     pub checkpoint_after_ms: f64,
+    /// Named states `save` may keep at most.
+    #[arg(long, default_value_t = TravelLimits::default().saves, value_name = "N")]
+    pub saves: usize,
+    /// Bytes all saved states may take at most.
+    #[arg(long, default_value_t = TravelLimits::default().save_bytes, value_name = "BYTES")]
+    pub save_bytes: u64,
+    /// Bytes the history `rewind` goes back through may take (a checkpoint of the world
+    /// every --history-every frames; the oldest go first); 0 keeps none.
+    #[arg(long, default_value_t = TravelLimits::default().history_bytes, value_name = "BYTES")]
+    pub history_bytes: u64,
+    /// Frames between two checkpoints of the history: a rewind replays at most this many
+    /// steps.
+    #[arg(long, default_value_t = TravelLimits::default().history_every, value_name = "FRAMES")]
+    pub history_every: u64,
+    /// Worlds this server serves at most, its own and the forks `fork` starts.
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub max_worlds: usize,
 }
 
 #[derive(Subcommand)]
@@ -157,7 +175,7 @@ pub enum Command {
     /// state for late joiners on the ricochet/<world>/state queryable, one event per
     /// handled command on ricochet/<world>/event; a liveliness token
     /// ricochet/<world>/alive/<zid> says the world is up and which peer serves it.
-    Run(RunArgs),
+    Run(Box<RunArgs>),
     /// Make the TLS certificates of a secured deployment (assets/zenoh/).
     ///
     /// A certificate authority and the router's certificate signed by it, as PEM files in DIR
@@ -219,6 +237,12 @@ impl RunArgs {
                 self.checkpoint_after_ms
             );
         }
+        if self.history_every == 0 {
+            bail!("--history-every 0: must be a number of frames of 1 or more");
+        }
+        if self.max_worlds == 0 {
+            bail!("--max-worlds 0: the server serves its own world at least");
+        }
         if self.journal_bytes < 4096 {
             bail!(
                 "--journal-bytes {}: must be at least 4096",
@@ -264,6 +288,14 @@ impl RunArgs {
             },
             accuracy: self.how.accuracy,
             accuracy_cache: self.how.accuracy_cache,
+            travel: TravelLimits {
+                saves: self.saves,
+                save_bytes: self.save_bytes,
+                history_bytes: self.history_bytes,
+                history_every: self.history_every,
+                ..TravelLimits::default()
+            },
+            max_worlds: self.max_worlds,
         })
     }
 }

@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use super::super::answered::{Answered, Remembered};
 use super::super::hosted::Hosted;
+use super::super::travel::Travel;
 use super::super::HostOptions;
 use super::{signed, Header, Journal, Line};
 
@@ -77,6 +78,10 @@ struct State {
     answers: Vec<Remembered>,
     #[serde(with = "serde_bytes")]
     world: Vec<u8>,
+    /// The host's saves, history and frame hashes: a resumed server restores and rewinds
+    /// as the live one did.
+    #[serde(default)]
+    travel: Option<Travel>,
 }
 
 /// A restored checkpoint: the host and the answers it remembered (ages as at the
@@ -155,6 +160,7 @@ impl Journal {
             host.wire.generation,
         );
         let accuracy = host.accuracy.clone();
+        let travel = host.travel.clone();
         let answers = answered.export(Instant::now());
         let writing = std::thread::Builder::new()
             .name("checkpoint".into())
@@ -168,6 +174,7 @@ impl Journal {
                     accuracy,
                     answers,
                     world: copy.save(),
+                    travel: Some(travel),
                 };
                 drop(copy);
                 let mut bytes = MAGIC.to_vec();
@@ -363,6 +370,9 @@ pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) ->
     host.stepping.steps_run = state.steps_run;
     host.wire.generation = state.generation;
     host.accuracy = state.accuracy;
+    if let Some(travel) = state.travel {
+        host.travel = travel.with_limits(opts.travel);
+    }
     Ok(Restored {
         host,
         answers: state.answers,

@@ -287,15 +287,16 @@ impl Journal {
     /// The reply of the command [`Journal::before`] wrote last, if it had an id.
     pub fn replied(&mut self, reply: &Reply) {
         if reply.id.is_some() {
-            // The bodies a `bodies` reply reports are the world's: a replay makes them
-            // again, and the journal does not grow by them.
+            // The bodies a `bodies` reply reports and the hashes of `hashes` are the
+            // world's: a replay makes them again, and the journal does not grow by them.
             let replied = Reply {
                 ok: reply.ok,
                 frame: reply.frame,
                 ids: reply.ids.clone(),
                 error: reply.error.clone(),
                 id: reply.id.clone(),
-                bodies: Vec::new(),
+                hash: reply.hash.clone(),
+                ..Reply::default()
             };
             self.line(&Line::Replied { replied });
         }

@@ -145,10 +145,8 @@ fn a_journal_of_version_2_with_commands_written_after_they_ran_still_resumes() {
     let reply = Reply {
         ok: true,
         frame,
-        ids: Vec::new(),
-        error: None,
         id: Some("p".into()),
-        bodies: Vec::new(),
+        ..Reply::default()
     };
     let line = Line::Command {
         frame,
