@@ -516,6 +516,90 @@ mod tests {
         assert_eq!(bits(&resumed.host.world), bits(&host.world));
     }
 
+    /// Saves, restores and rewinds journaled across checkpoints: the resumed host has the
+    /// live one's world, saves, history and hashes, and travels as it does.
+    #[test]
+    fn time_travel_resumes_across_checkpoints_as_it_ran() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("world.journal");
+        let opts = HostOptions {
+            travel: crate::host::travel::TravelLimits {
+                history_every: 20,
+                ..Default::default()
+            },
+            ..options(Checkpoints {
+                journal_bytes: 4096,
+                replay_ms: f64::INFINITY,
+            })
+        };
+        let scene = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../assets/scenes/pyramid-10.toml"
+        );
+        let text = std::fs::read_to_string(scene).unwrap();
+        let mut host = Hosted::load(text, PathBuf::from(scene), &opts).unwrap();
+        let mut journal = Journal::create(&path, "journaled", &host, &opts).unwrap();
+        let answered = Answered::default();
+        let mut taken = 0;
+        let mut travelled = 0;
+        for i in 0..500u64 {
+            let frame = host.world.frame();
+            let json = match i % 61 {
+                5 => Some(r#"{"do":"agitate","strength":3}"#.to_string()),
+                10 => Some(format!(r#"{{"do":"save","name":"s{}"}}"#, i % 3)),
+                30 => Some(format!(
+                    r#"{{"do":"rewind","frame":{}}}"#,
+                    frame.saturating_sub(13)
+                )),
+                45 => Some(format!(r#"{{"do":"restore","name":"s{}"}}"#, (i + 1) % 3)),
+                _ => None,
+            };
+            if let Some(json) = json {
+                let cmd = command(&json);
+                journal
+                    .before(Intent::Apply(&cmd), frame, &None, &None)
+                    .unwrap();
+                let handled = host.handle(&cmd);
+                travelled += usize::from(handled.reply.ok && !json.contains("agitate"));
+            }
+            host.advance();
+            journal.stepped(host.world.frame(), f64::from(host.stepping.last_step_ms));
+            if journal.checkpoint_due() {
+                journal.checkpoint(&host, &answered, "journaled", &opts);
+                taken += 1;
+            }
+            journal.poll(i.is_multiple_of(5));
+        }
+        journal.poll(true);
+        assert!(taken >= 2, "{taken} checkpoints");
+        assert!(travelled >= 12, "{travelled} saves, rewinds and restores");
+        let mut resumed = resume(&path, &opts).unwrap().host;
+        assert_eq!(resumed.world.frame(), host.world.frame());
+        assert_eq!(bits(&resumed.world), bits(&host.world));
+        assert_eq!(resumed.travel.saves(), host.travel.saves());
+        assert_eq!(resumed.travel.rewinds_to(), host.travel.rewinds_to());
+        assert_eq!(
+            resumed.travel.hashes(None, None),
+            host.travel.hashes(None, None)
+        );
+        // And they travel alike.
+        let back = host.travel.rewinds_to().unwrap() + 3;
+        for json in [
+            format!(r#"{{"do":"rewind","frame":{back}}}"#),
+            r#"{"do":"restore","name":"s1"}"#.to_string(),
+        ] {
+            let cmd = command(&json);
+            let (a, b) = (host.handle(&cmd), resumed.handle(&cmd));
+            assert!(a.reply.ok, "{json}: {:?}", a.reply.error);
+            assert_eq!((a.reply.frame, a.reply.hash), (b.reply.frame, b.reply.hash));
+            for _ in 0..30 {
+                host.advance();
+                resumed.advance();
+            }
+            assert_eq!(bits(&resumed.world), bits(&host.world));
+        }
+    }
+
     #[test]
     fn answers_remembered_at_a_checkpoint_are_remembered_after_a_resume() {
         let dir = tempfile::tempdir().unwrap();
