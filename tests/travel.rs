@@ -179,6 +179,38 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
     assert!(reply.ok, "{:?}", reply.error);
     let saved_at = step(&client, 20);
 
+    // The served run is the headless run of the same commands, hash for hash: the
+    // world commands (all applied at frame 0, the world paused) replayed by `simulate`.
+    let log: String = [
+        serde_json::json!({"do": "spawn", "body": cue}),
+        serde_json::json!({"do": "spawn", "template": "ball", "at": [25.0, 10.0]}),
+        serde_json::json!({"do": "spawn", "template": "ball", "at": [27.0, 11.1]}),
+        serde_json::json!({"do": "spawn", "template": "ball", "at": [27.0, 8.9]}),
+        serde_json::json!({"do": "spawn", "template": "ball", "at": [10, 3]}),
+        serde_json::json!({"do": "impulse", "body": "cue", "impulse": [60.0, 1.0]}),
+    ]
+    .iter()
+    .map(|action| format!("{}\n", serde_json::json!({"frame": 0, "action": action})))
+    .collect();
+    let inputs = dir.path().join("inputs.jsonl");
+    std::fs::write(&inputs, log).unwrap();
+    let headless = dir.path().join("hashes.jsonl");
+    let out = std::process::Command::new(bin("ricochet-server"))
+        .args(["simulate", "--scene", scene.to_str().unwrap(), "--steps"])
+        .arg(saved_at.to_string())
+        .args(["--inputs", inputs.to_str().unwrap()])
+        .args(["--hashes", headless.to_str().unwrap()])
+        .output()
+        .unwrap();
+    ok(&out);
+    let headless: Vec<FrameHash> = std::fs::read_to_string(&headless)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(headless.len() as u64, saved_at + 1);
+    assert_eq!(hashes(&client, 0, saved_at), headless);
+
     // Saved at frame N, run 300 steps; restored, run 300 steps again: the same bits.
     let save = server_command(
         &client,

@@ -345,6 +345,11 @@ pub struct SimulateArgs {
     /// bodies.
     #[arg(long, value_name = "FILE")]
     pub stats: Option<PathBuf>,
+    /// Write every frame's state hash as JSON Lines to this file, `{"frame": F, "hash":
+    /// "..."}` from frame 0: the hashes a server's `hashes` command gives for the same
+    /// scene and commands, so a served run and its replay are compared frame by frame.
+    #[arg(long, value_name = "FILE")]
+    pub hashes: Option<PathBuf>,
     /// Encode every frame as the server would send it and report the bytes per frame,
     /// per dynamic body and per particle.
     #[arg(long)]

@@ -26,6 +26,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         stats: stats_path,
         wire_stats,
         keyframe_interval,
+        hashes: hashes_path,
     } = args;
     let limits = how.limits(Limits::default())?;
     let mut overrides = how.set;
@@ -66,6 +67,26 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     if let Some(out) = out.as_mut() {
         write_frame(out, &world)?;
     }
+    let mut hashes_out = match hashes_path.as_deref() {
+        None => None,
+        Some(p) => {
+            Some(BufWriter::new(File::create(p).with_context(|| {
+                format!("cannot create hashes {}", p.display())
+            })?))
+        }
+    };
+    let mut hashed = |world: &World| -> Result<()> {
+        if let Some(out) = hashes_out.as_mut() {
+            let line = ricochet_protocol::command::FrameHash {
+                frame: world.frame(),
+                hash: ricochet_server::host::travel::hex(world.state_hash()),
+            };
+            serde_json::to_writer(&mut *out, &line)?;
+            out.write_all(b"\n")?;
+        }
+        Ok(())
+    };
+    hashed(&world)?;
     let mut stats_out = match stats_path {
         None => None,
         Some(p) => {
@@ -101,6 +122,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         if let Some(out) = out.as_mut() {
             write_frame(out, &world)?;
         }
+        hashed(&world)?;
         if let Some(out) = stats_out.as_mut() {
             serde_json::to_writer(&mut *out, &wire::stats_record(&world))?;
             out.write_all(b"\n")?;
@@ -115,6 +137,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         out.flush()?;
     }
     if let Some(mut out) = stats_out {
+        out.flush()?;
+    }
+    if let Some(mut out) = hashes_out {
         out.flush()?;
     }
     let stats = world.stats();
