@@ -8,6 +8,19 @@ Needs only the standard library and `eclipse-zenoh` from PyPI:
     python3 assets/scripts/ricochet_client.py send spawn_minion at=[100,60]
     python3 assets/scripts/ricochet_client.py watch --frames 120
 
+`send` takes any command, as JSON or as NAME ARG=VALUE ... (values are JSON; a bare word is
+a string). The commands (docs/network.md has their arguments):
+
+  world:  press, release, fire_dye_pack, spawn_minion, spawn_dumb_minion, select, drag,
+          deselect, agitate, clear, spawn_particles, start_emitter, remove, impulse,
+          set_body, spawn, set
+  server: pause, resume, step, reset, bodies, load, save, restore, rewind, hashes, fork,
+          close
+
+    python3 assets/scripts/ricochet_client.py send spawn template=ball at=[25,10]
+    python3 assets/scripts/ricochet_client.py send save name=break
+    python3 assets/scripts/ricochet_client.py send fork world=fine 'settings={"substeps":8}'
+
 `watch` prints one JSON object per frame: frame, time, the dynamic bodies (id, x, y, vx,
 vy, collided), the static body count from the snapshot, particles (x, y, size, rgba) and
 the step's figures. The frame layout is documented in protocol/src/frame/mod.rs; this file
@@ -618,7 +631,8 @@ def main():
                     help="a zenoh configuration file (json5), e.g. assets/zenoh/client.json5; the flags given override it")
     ap.add_argument("--timeout", type=float, default=5.0)
     sub = ap.add_subparsers(dest="cmd", required=True)
-    send = sub.add_parser("send", help="send one command and print the reply")
+    send = sub.add_parser("send", help="send one command and print the reply (the commands: "
+                          "see the top of this help)")
     send.add_argument("command", nargs="+")
     send.add_argument("--raw", action="store_true", help="send the text as it is, even if it is not JSON")
     w = sub.add_parser("watch", help="print every frame as JSON")

@@ -53,3 +53,31 @@ fn worlds_with_no_server_says_so() {
     refused(&out, &endpoint);
     assert!(out.stdout.is_empty());
 }
+
+/// Every command the parser knows is listed by `ricochet --help` and by the Python
+/// client's `--help`: a new command cannot be added without telling users of either.
+#[test]
+fn every_command_is_in_the_help_of_both_clients() {
+    use ricochet_protocol::command::{Action, SERVER_COMMANDS};
+    let rust = ricochet(&["--help"]);
+    assert!(rust.status.success());
+    let rust = String::from_utf8_lossy(&rust.stdout).into_owned();
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../assets/scripts/ricochet_client.py"
+    );
+    let python = Command::new("python3")
+        .args([script, "--help"])
+        .output()
+        .expect("python3 runs");
+    assert!(python.status.success(), "{python:?}");
+    let python = String::from_utf8_lossy(&python.stdout).into_owned();
+    for name in SERVER_COMMANDS.iter().chain(Action::NAMES) {
+        let word = |text: &str| {
+            text.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .any(|w| w == *name)
+        };
+        assert!(word(&rust), "`ricochet --help` does not list `{name}`");
+        assert!(word(&python), "the Python client's --help does not list `{name}`");
+    }
+}
