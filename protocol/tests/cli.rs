@@ -78,6 +78,9 @@ fn every_command_is_in_the_help_of_both_clients() {
                 .any(|w| w == *name)
         };
         assert!(word(&rust), "`ricochet --help` does not list `{name}`");
-        assert!(word(&python), "the Python client's --help does not list `{name}`");
+        assert!(
+            word(&python),
+            "the Python client's --help does not list `{name}`"
+        );
     }
 }

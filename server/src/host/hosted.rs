@@ -241,17 +241,19 @@ impl Hosted {
     /// kind took here ([`price`]). The budgets refuse by this price and charge the time
     /// the command really took, so a price too low is paid in full all the same.
     pub fn price(&self, command: &Command) -> price::Price {
-        self.accounts.calibration.price(
-            price::model(
-                command,
-                self.world.bodies().len() as f64,
-                self.world.particles().len() as f64,
-                self.source.text.len(),
-                self.world.limits().particles_per_action,
-                u64::from(self.rules.limits.command_bytes),
-            ),
-            Instant::now(),
-        )
+        let (kind, mut ns) = price::model(
+            command,
+            self.world.bodies().len() as f64,
+            self.world.particles().len() as f64,
+            self.source.text.len(),
+            self.world.limits().particles_per_action,
+            u64::from(self.rules.limits.command_bytes),
+        );
+        if let Command::Server(ServerCommand::Rewind { .. }) = command {
+            // The steps it replays, at what the last step took.
+            ns += self.travel.replay_steps() as f64 * f64::from(self.stepping.last_step_ms) * 1e6;
+        }
+        self.accounts.calibration.price((kind, ns), Instant::now())
     }
 
     /// Learns what a command priced `price` took here (see [`price::Calibration`]).

@@ -123,6 +123,17 @@ pub fn model(
                     + particles * SCAN_NS_PER_PARTICLE,
             )
         }
+        // A world copied whole (save, fork) or rebuilt from its bytes (restore, rewind;
+        // a rewind's replayed steps are added by the host, which knows a step's time).
+        Command::Server(
+            ServerCommand::Save { .. }
+            | ServerCommand::Restore { .. }
+            | ServerCommand::Rewind { .. }
+            | ServerCommand::Fork { .. },
+        ) => (
+            Kind::Reset,
+            BASE_NS + bodies * BUILD_NS_PER_BODY + particles * SCAN_NS_PER_PARTICLE,
+        ),
         // A pass over the bodies, and a line of the reply for each picked.
         Command::Server(ServerCommand::Bodies { .. }) => {
             (Kind::Scan, BASE_NS + bodies * SCAN_NS_PER_BODY)
