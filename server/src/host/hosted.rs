@@ -366,7 +366,7 @@ impl Hosted {
                 }
             }
             Command::Server(ServerCommand::Rewind { frame: to }) => {
-                match self.travel.rewind(*to, &self.world, &self.rules.limits) {
+                match self.travel.rewind(*to, &self.world) {
                     Ok(world) => {
                         self.replace_world(world);
                         let hash = self.world.state_hash();

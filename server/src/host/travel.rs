@@ -3,7 +3,7 @@
 //! (`hashes`), so a client checks that a restored or replayed run is the same, bit for
 //! bit.
 //!
-//! The history is a checkpoint of the world ([`World::save`]) every
+//! The history is a copy of the world every
 //! [`TravelLimits::history_every`] frames, and every world command applied since the
 //! oldest: a rewind to frame F restores the last checkpoint at or before F and replays
 //! the commands and steps up to F, as the engine is deterministic. It is bounded in
@@ -28,7 +28,8 @@ pub struct TravelLimits {
     pub saves: usize,
     /// Bytes of all saves at most.
     pub save_bytes: u64,
-    /// Bytes of the history's checkpoints at most (0: no history, `rewind` refused).
+    /// Bytes of the history's copies of the world at most, as estimated by
+    /// [`World::memory_estimate`] (0: no history, `rewind` refused).
     pub history_bytes: u64,
     /// Frames between two checkpoints of the history: a rewind replays at most this many
     /// steps.
@@ -61,12 +62,15 @@ pub struct Saved {
     pub scene_name: PathBuf,
 }
 
-/// A checkpoint of the history.
+/// A checkpoint of the history: a copy of the world (a copy costs a tenth to a fiftieth
+/// of its bytes as a checkpoint file, and is taken every `history_every` frames while the
+/// world runs).
 #[derive(Clone, Serialize, Deserialize)]
 struct Mark {
     frame: u64,
-    #[serde(with = "serde_bytes")]
-    world: Vec<u8>,
+    world: Box<World>,
+    /// What the copy takes in memory, about ([`World::memory_estimate`]).
+    bytes: u64,
 }
 
 /// A host's saves, history and frame hashes.
@@ -139,7 +143,8 @@ impl Travel {
         }
         self.marks.push_back(Mark {
             frame,
-            world: world.save(),
+            world: Box::new(world.clone()),
+            bytes: world.memory_estimate() as u64,
         });
         let bound = self.limits().history_bytes;
         // The newest checkpoint is kept whatever its size: a rewind within the last
@@ -154,7 +159,7 @@ impl Travel {
     }
 
     fn history_bytes(&self) -> u64 {
-        self.marks.iter().map(|m| m.world.len() as u64).sum()
+        self.marks.iter().map(|m| m.bytes).sum()
     }
 
     /// A world command applied at the boundary after `frame` (a rewind replays it).
@@ -271,7 +276,7 @@ impl Travel {
     /// The world as it was published at `frame` (`now` is the world as it is): the last
     /// checkpoint at or before it, with the commands and steps after it replayed. The
     /// history after `frame` is forgotten: the world goes on from there.
-    pub fn rewind(&mut self, frame: u64, now: &World, limits: &Limits) -> Result<World, String> {
+    pub fn rewind(&mut self, frame: u64, now: &World) -> Result<World, String> {
         if frame > now.frame() {
             return Err(format!(
                 "`frame`: {frame} is ahead of the world, at frame {}",
@@ -294,8 +299,7 @@ impl Travel {
             .rev()
             .find(|m| m.frame <= frame)
             .expect("the first mark is at or before the frame");
-        let mut world = World::restore(&mark.world, limits.clone())
-            .map_err(|e| format!("the history's checkpoint at frame {}: {e}", mark.frame))?;
+        let mut world = (*mark.world).clone();
         let mut log = self.log.iter().filter(|(f, _)| *f >= mark.frame).peekable();
         while world.frame() < frame {
             while let Some((_, command)) = log.next_if(|(f, _)| *f == world.frame()) {
@@ -381,14 +385,14 @@ mod tests {
         let hashes = travel.hashes(None, None);
         for frame in [0, 24, 25, 61, 62, 89, 119, 120] {
             let mut t = travel.clone();
-            let back = t.rewind(frame, &world, world.limits()).unwrap();
+            let back = t.rewind(frame, &world).unwrap();
             assert_eq!(back.frame(), frame);
             let expected = hashes.iter().find(|h| h.frame == frame).unwrap();
             assert_eq!(hex(back.state_hash()), expected.hash, "frame {frame}");
         }
         // And the world goes on from there as it did: the same commands give the same
         // frames.
-        let back = travel.rewind(50, &world, world.limits()).unwrap();
+        let back = travel.rewind(50, &world).unwrap();
         let mut again = back;
         run(&mut again, &mut travel, 120, &commands);
         assert_eq!(again.state_hash(), world.state_hash());
@@ -406,9 +410,9 @@ mod tests {
         let mut travel = Travel::new(&world, limits);
         run(&mut world, &mut travel, 35, &[]);
         assert_eq!(travel.rewinds_to(), Some(30), "one checkpoint kept");
-        let e = travel.rewind(12, &world, world.limits()).err().unwrap();
+        let e = travel.rewind(12, &world).err().unwrap();
         assert!(e.contains("starts at frame 30"), "{e}");
-        let e = travel.rewind(36, &world, world.limits()).err().unwrap();
+        let e = travel.rewind(36, &world).err().unwrap();
         assert!(e.contains("ahead"), "{e}");
         let none = TravelLimits {
             history_bytes: 0,
