@@ -10,6 +10,7 @@
 //!   the server's [`ricochet_server::accuracy::measure`], written here);
 //! - [`soak`]: a real server under floods, a stalled viewer and a kill, measured;
 //! - [`suite`]: the suite of scene kinds under named settings, against their criteria;
+//! - [`families`]: scene families drawn from ranges by seed, judged by physical invariants;
 //! - [`hostile`]: attacks on real servers, each with its defence on and off;
 //! - [`profile`]: where a step's time goes, stage by stage;
 //! - [`wire`]: bytes on the wire per scene; [`fanout`]: one server, many viewers;
@@ -20,6 +21,7 @@
 
 pub mod bench;
 pub mod chart;
+pub mod families;
 pub mod fanout;
 pub mod hostile;
 pub mod profile;

@@ -16,6 +16,8 @@
 //! final_speed = 0.05           # the same, over the last second of the run only
 //! energy_rise = 0.01           # kinetic energy never rises more than this share of its
 //!                              # start above an earlier low (worlds without gravity)
+//! energy_change = 0.02         # kinetic energy at the end within this share of its start
+//!                              # (elastic worlds: restitution 1, no friction, no gravity)
 //! ```
 //!
 //! Every figure is the worst over the whole run (or over its stated end); a body that
@@ -59,6 +61,10 @@ pub struct Criteria {
     /// value at the start.
     #[serde(default)]
     pub energy_rise: Option<f64>,
+    /// Largest share by which the kinetic energy at the end of the run differs from its
+    /// value at the start, up or down (an elastic world keeps it).
+    #[serde(default)]
+    pub energy_change: Option<f64>,
 }
 
 fn default_steps() -> u64 {
@@ -77,6 +83,7 @@ impl Default for Criteria {
             speed: None,
             final_speed: None,
             energy_rise: None,
+            energy_change: None,
         }
     }
 }
@@ -105,6 +112,7 @@ impl Criteria {
             ("speed", self.speed),
             ("final_speed", self.final_speed),
             ("energy_rise", self.energy_rise),
+            ("energy_change", self.energy_change),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v >= 0.0) {
@@ -142,6 +150,9 @@ pub struct Figures {
     pub speed: f64,
     pub final_speed: f64,
     pub energy_rise: f64,
+    /// The kinetic energy after the last step observed against its start, as a share of
+    /// the start (0 when the start had none).
+    pub energy_change: f64,
     /// A position or velocity stopped being a finite number.
     pub non_finite: bool,
 }
@@ -164,6 +175,8 @@ pub struct Monitor {
     /// Each dynamic body has left `inside` (same order as `dynamic`).
     left: Vec<bool>,
     energy: EnergyWatch,
+    /// The kinetic energy as built.
+    start_energy: f64,
     /// Steps in the run's last second, from the world's step.
     final_window: u64,
     figures: Figures,
@@ -202,6 +215,7 @@ impl Monitor {
             dt: world.config.dt,
             resolving,
             energy: EnergyWatch::new(energy),
+            start_energy: energy,
             final_window: per_second.min(criteria.steps),
             figures: Figures::default(),
         }
@@ -259,6 +273,11 @@ impl Monitor {
             }
         }
         f.energy_rise = self.energy.see(energy);
+        f.energy_change = if self.start_energy > 0.0 {
+            (energy - self.start_energy).abs() / self.start_energy
+        } else {
+            0.0
+        };
         // The overlap costs a pass over the bodies: every step where it is judged over the
         // run, from the last stated step on where only its end is.
         let at_end = self.figures.steps >= self.criteria.steps;
@@ -298,6 +317,7 @@ impl Monitor {
         judge("speed", f.speed, c.speed);
         judge("final_speed", f.final_speed, c.final_speed);
         judge("energy_rise", f.energy_rise, c.energy_rise);
+        judge("energy_change", f.energy_change, c.energy_change);
         out
     }
 
