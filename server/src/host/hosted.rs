@@ -111,7 +111,9 @@ impl Hosted {
         scene_name: PathBuf,
         opts: &HostOptions,
     ) -> anyhow::Result<Self> {
-        let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)?;
+        // The operator's own file: the long form, with the line and a caret.
+        let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)
+            .map_err(|e| anyhow::anyhow!("{}", e.report(&scene_text)))?;
         check_frame_bytes(&world, (0, 0, 0), opts.max_frame_bytes)
             .map_err(|e| anyhow::anyhow!("{}: {e}", scene_name.display()))?;
         Ok(Self::with_world(world, scene_text, scene_name, opts))

@@ -13,6 +13,10 @@ use crate::particles::ParticlePreset;
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct SceneFile {
+    /// Groups that bodies join only at run time (spawned by the world's rules or by
+    /// commands), so that an interaction may name them before any body belongs to them.
+    #[serde(default)]
+    pub(super) groups: Vec<Spanned<String>>,
     #[serde(default)]
     pub(super) world: Option<Spanned<WorldConfig>>,
     /// Read over the ceiling's values (see [`crate::world::Limits`]).
@@ -195,8 +199,8 @@ pub(super) struct RawEmitter {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct RawInteraction {
-    pub(super) a: String,
-    pub(super) b: String,
+    pub(super) a: Spanned<String>,
+    pub(super) b: Spanned<String>,
     #[serde(default = "default_true")]
     pub(super) resolve: bool,
 }
