@@ -2,35 +2,24 @@
 //! emitters, presets and the interactions between groups. A bad scene is refused with
 //! the file, line and field at fault.
 //!
-//! ```toml
-//! [world]                      # every field optional; the chapter's defaults
-//! gravity = [0, -50]
-//! relaxation_iterations = 15
+//! docs/scenes.md is the format's reference, written from these types ([`reference`]),
+//! with an example of every table.
 //!
-//! [limits]                     # optional: lower the runner's limits for this world
-//! bodies = 500
+//! ```toml
+//! groups = ["dye_packs"]       # groups joined only at run time, before the first table
+//!
+//! [world]                      # every field optional
+//! gravity = [0, -50]
 //!
 //! [[body]]
-//! id = "hero"
-//! group = "hero"
-//! shape = "rect"               # or "circle" with radius = r
-//! size = [16, 22]
-//! pos = [30, 30]
-//! mass = 0.7                   # 0 = static
-//! behavior = "hero"            # or "minion", "dumb_minion"
-//!
-//! [[generate]]                 # bodies "<id>/0", "<id>/1", ...
-//! kind = "row"                 # "row", "grid", "stack" or "pyramid"
 //! id = "floor"
 //! group = "platforms"
+//! shape = "rect"               # or "circle" with radius = r
 //! size = [30, 3.75]
-//! start = [-15, 2]
-//! step = [30, 0]
-//! count = 9
-//! mass = 0
+//! mass = 0                     # 0 = static
 //!
-//! [[interact]]
-//! a = "hero"
+//! [[interact]]                 # only groups a body, generator or `groups` names
+//! a = "dye_packs"
 //! b = "platforms"              # "particles" names the particle side
 //! ```
 
@@ -50,6 +39,7 @@ use crate::world::{Limits, World, PARTICLES};
 mod error;
 mod generate;
 mod raw;
+pub mod reference;
 
 pub use error::SceneError;
 
