@@ -50,7 +50,10 @@ fn the_systemd_unit_verifies_and_stops_the_server_with_sigterm() {
     assert!(ok, "{said}");
     assert!(said.trim().is_empty(), "systemd-analyze warned:\n{said}");
     // The check can fail: a binary that is not there, a signal systemd does not know.
-    let missing = unit.replace("/usr/local/bin/ricochet-server", "/nonexistent/ricochet-server");
+    let missing = unit.replace(
+        "/usr/local/bin/ricochet-server",
+        "/nonexistent/ricochet-server",
+    );
     assert!(!verify(&missing).unwrap().0, "a missing binary verified");
     let bogus = here.replace("KillSignal=SIGTERM", "KillSignal=SIGBOGUS");
     assert!(!verify(&bogus).unwrap().1.is_empty(), "a bad signal passed");
@@ -66,7 +69,11 @@ fn the_dockerfile_copies_built_binaries_and_journals_the_world() {
         );
         assert!(bin(binary).exists(), "the workspace builds no {binary}");
     }
-    for needle in ["STOPSIGNAL SIGTERM", "\"--journal\", \"/var/lib/ricochet/", "router"] {
+    for needle in [
+        "STOPSIGNAL SIGTERM",
+        "\"--journal\", \"/var/lib/ricochet/",
+        "router",
+    ] {
         assert!(dockerfile.contains(needle), "`{needle}` missing");
     }
 }

@@ -281,7 +281,10 @@ fn stop(service: &mut Running, signal: &str) -> std::process::ExitStatus {
         if let Some(status) = service.0.try_wait().unwrap() {
             return status;
         }
-        assert!(began.elapsed() < TIMEOUT, "the server did not stop on {signal}");
+        assert!(
+            began.elapsed() < TIMEOUT,
+            "the server did not stop on {signal}"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
 }
@@ -341,7 +344,10 @@ fn a_server_stopped_by_sigterm_resumes_bit_for_bit_from_the_same_command_line() 
         Some(last),
         "the journal starts from a checkpoint of the stopped frame: {text}"
     );
-    assert!(dir.path().join(format!("world.journal.{last}.checkpoint")).exists());
+    assert!(dir
+        .path()
+        .join(format!("world.journal.{last}.checkpoint"))
+        .exists());
 
     // The same command line: the journal exists, so it is resumed.
     let mut b = service(&endpoint, "service", &args, Path::new(&log));
@@ -358,7 +364,10 @@ fn a_server_stopped_by_sigterm_resumes_bit_for_bit_from_the_same_command_line() 
         "the resumed world is the stopped one at frame {last}"
     );
     let logged = std::fs::read_to_string(&log).unwrap();
-    assert!(logged.contains("the journal exists: resuming it"), "{logged}");
+    assert!(
+        logged.contains("the journal exists: resuming it"),
+        "{logged}"
+    );
 
     // The headless reference: the scene and A's commands, as its journal held them.
     let mut inputs = String::new();
@@ -386,7 +395,11 @@ fn a_server_stopped_by_sigterm_resumes_bit_for_bit_from_the_same_command_line() 
         .unwrap());
     let reference = dump_lines(Path::new(&reference));
     for frame in 0..=last {
-        assert_eq!(stopped.get(&frame), reference.get(&frame), "A's frame {frame}");
+        assert_eq!(
+            stopped.get(&frame),
+            reference.get(&frame),
+            "A's frame {frame}"
+        );
     }
     for frame in last..=last + u64::from(more) {
         assert_eq!(

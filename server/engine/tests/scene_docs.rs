@@ -21,7 +21,10 @@ fn writing() -> bool {
 fn the_scene_reference_is_generated_from_the_types() {
     let path = docs().join("scenes.md");
     let page = std::fs::read_to_string(&path).unwrap();
-    let (a, b) = (page.find(BEGIN).expect("begin"), page.find(END).expect("end"));
+    let (a, b) = (
+        page.find(BEGIN).expect("begin"),
+        page.find(END).expect("end"),
+    );
     let generated = reference::markdown();
     if writing() {
         let page = format!("{}{BEGIN}{generated}{}", &page[..a], &page[b..]);
@@ -32,7 +35,13 @@ fn the_scene_reference_is_generated_from_the_types() {
         page[a + BEGIN.len()..b] == generated,
         "docs/scenes.md's reference is not the types' (RICOCHET_WRITE_DOCS=1 writes it):\n{generated}"
     );
-    for table in ["[world]", "[[body]]", "[[interact]]", "[preset.NAME]", "`groups`"] {
+    for table in [
+        "[world]",
+        "[[body]]",
+        "[[interact]]",
+        "[preset.NAME]",
+        "`groups`",
+    ] {
         assert!(generated.contains(table), "{table} is missing");
     }
 }
@@ -51,7 +60,10 @@ fn the_json_schema_is_generated_from_the_types() {
         "docs/scene.schema.json is not the types' (RICOCHET_WRITE_DOCS=1 writes it)"
     );
     let value: serde_json::Value = serde_json::from_str(&schema).unwrap();
-    assert_eq!(value["additionalProperties"], false, "unknown tables refused");
+    assert_eq!(
+        value["additionalProperties"], false,
+        "unknown tables refused"
+    );
     assert!(value["properties"]["interact"].is_object());
 }
 

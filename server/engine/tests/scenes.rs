@@ -312,7 +312,11 @@ fn an_interaction_naming_a_group_no_body_is_in_is_refused() {
     let text = ball_over_ground("", "grund");
     let e = parse(&text).unwrap_err();
     let line = text.lines().position(|l| l == "b = \"grund\"").unwrap() + 1;
-    assert_eq!((e.line, e.column, e.field.as_str()), (line, 5, "interact[0].b"), "{e}");
+    assert_eq!(
+        (e.line, e.column, e.field.as_str()),
+        (line, 5, "interact[0].b"),
+        "{e}"
+    );
     assert!(e.message.contains("`grund`"), "{e}");
     assert_eq!(e.help.as_deref(), Some("did you mean `ground`?"));
     // The same name listed as a group joined at run time loads; the right name keeps
@@ -335,7 +339,10 @@ fn an_interaction_naming_a_group_no_body_is_in_is_refused() {
 fn the_local_report_shows_the_value_with_a_caret_and_a_suggestion() {
     let text = "[[body]]\nid = \"a\"\nshape = \"rec\"\nsize = [1, 2]\n";
     let e = parse(text).unwrap_err();
-    assert_eq!((e.line, e.column, e.field.as_str()), (3, 9, "body[0].shape"));
+    assert_eq!(
+        (e.line, e.column, e.field.as_str()),
+        (3, 9, "body[0].shape")
+    );
     // The short form, as a network client gets it, quotes no value of the file.
     assert!(!e.to_string().contains("rec`"), "{e}");
     let report = e.report(text);
@@ -352,12 +359,17 @@ fn the_local_report_shows_the_value_with_a_caret_and_a_suggestion() {
     let text = "[[body]]\nshape = \"circle\"\nradius = \"big\"\n";
     let e = parse(text).unwrap_err();
     assert!(!e.to_string().contains("big"), "{e}");
-    assert!(e.report(text).contains("string \"big\""), "{}", e.report(text));
+    assert!(
+        e.report(text).contains("string \"big\""),
+        "{}",
+        e.report(text)
+    );
 }
 
 #[test]
 fn a_typo_keeps_its_table_and_gets_a_suggestion() {
-    let text = "[[body]]\nshape = \"circle\"\nradius = 1\n\n[[body]]\nshape = \"rect\"\nsiz = [1, 2]\n";
+    let text =
+        "[[body]]\nshape = \"circle\"\nradius = 1\n\n[[body]]\nshape = \"rect\"\nsiz = [1, 2]\n";
     let e = parse(text).unwrap_err();
     assert_eq!((e.line, e.field.as_str()), (7, "body[1].siz"), "{e}");
     assert_eq!(e.help.as_deref(), Some("did you mean `size`?"));

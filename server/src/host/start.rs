@@ -35,7 +35,10 @@ pub(super) fn start(opts: &HostOptions) -> Result<Started> {
                 );
             }
             let resumed = journal::resume(path, opts)?;
-            let named = opts.scene.as_ref().and_then(|s| std::fs::read_to_string(s).ok());
+            let named = opts
+                .scene
+                .as_ref()
+                .and_then(|s| std::fs::read_to_string(s).ok());
             if named.is_some_and(|text| text != resumed.host.source.text) {
                 tracing::warn!(
                     scene = %opts.scene.as_ref().expect("named").display(),

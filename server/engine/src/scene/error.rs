@@ -49,12 +49,16 @@ impl SceneError {
 
     /// The error for the reader of the scene `text` (the text it was parsed from): the
     /// file, line and column, the line with a caret under the fault, the whole message
-    /// and a suggestion. Plain text, no colours; the first line is the field and the
-    /// message (a binary's `Error: ` goes before it).
+    /// and a suggestion. Plain text, no colours; the first line is the short form with
+    /// the values the short form leaves out (a binary's `Error: ` goes before it).
     pub fn report(&self, text: &str) -> String {
         let message = self.detail.as_deref().unwrap_or(&self.message);
-        let title = format!("{}: {message}", self.field);
         let path = self.file.display().to_string();
+        // The short form's `file:line: field:` first, for editors and `grep`.
+        let title = match self.line {
+            0 => format!("{path}: {}: {message}", self.field),
+            line => format!("{path}:{line}: {}: {message}", self.field),
+        };
         let span = self
             .span
             .clone()
@@ -67,7 +71,7 @@ impl SceneError {
                     Snippet::source(text)
                         .path(&path)
                         .fold(true)
-                        .annotation(AnnotationKind::Primary.span(span).label(&self.field)),
+                        .annotation(AnnotationKind::Primary.span(span)),
                 ),
             ),
             None => groups.push(Group::with_title(Level::ERROR.primary_title(&title))),
@@ -80,15 +84,6 @@ impl SceneError {
             .strip_prefix("error: ")
             .unwrap_or(&rendered)
             .to_string();
-        if self.span.is_none() || rendered.lines().count() < 2 {
-            // Nothing to point at: say where as the short form does.
-            let at = if self.line > 0 {
-                format!("{path}:{}", self.line)
-            } else {
-                path
-            };
-            return format!("{rendered}\n --> {at}");
-        }
         rendered
     }
 }

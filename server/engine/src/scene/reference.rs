@@ -113,7 +113,10 @@ impl Defs {
         let p = self.some(property);
         let object = |s: &'a Value| {
             let s = self.resolve(s);
-            s.get("properties").is_some().then(|| s.as_object()).flatten()
+            s.get("properties")
+                .is_some()
+                .then(|| s.as_object())
+                .flatten()
         };
         if let Some(items) = p.get("items") {
             return object(items).map(TableKind::Array);
