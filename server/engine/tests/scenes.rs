@@ -318,7 +318,7 @@ fn an_interaction_naming_a_group_no_body_is_in_is_refused() {
         "{e}"
     );
     assert!(e.message.contains("`grund`"), "{e}");
-    assert_eq!(e.help.as_deref(), Some("did you mean `ground`?"));
+    assert_eq!(e.help(), Some("did you mean `ground`?"));
     // The same name listed as a group joined at run time loads; the right name keeps
     // the ball on the ground.
     parse(&ball_over_ground("groups = [\"grund\"]", "grund")).unwrap();
@@ -330,9 +330,9 @@ fn an_interaction_naming_a_group_no_body_is_in_is_refused() {
     // `particles` names the particle side, and needs no body.
     parse(&ball_over_ground("", "particles")).unwrap();
     let e = parse(&ball_over_ground("", "bal")).unwrap_err();
-    assert_eq!(e.help.as_deref(), Some("did you mean `ball`?"));
+    assert_eq!(e.help(), Some("did you mean `ball`?"));
     let e = parse(&ball_over_ground("", "nothing-near")).unwrap_err();
-    assert!(e.help.unwrap().contains("groups = ["));
+    assert!(e.help().unwrap().contains("groups = ["));
 }
 
 #[test]
@@ -372,12 +372,12 @@ fn a_typo_keeps_its_table_and_gets_a_suggestion() {
         "[[body]]\nshape = \"circle\"\nradius = 1\n\n[[body]]\nshape = \"rect\"\nsiz = [1, 2]\n";
     let e = parse(text).unwrap_err();
     assert_eq!((e.line, e.field.as_str()), (7, "body[1].siz"), "{e}");
-    assert_eq!(e.help.as_deref(), Some("did you mean `size`?"));
+    assert_eq!(e.help(), Some("did you mean `size`?"));
     // Every `[world]` field in the local report; the short form is cut.
     let text = "[world]\ngravty = [0, -10]\n";
     let e = parse(text).unwrap_err();
     assert_eq!(e.field, "world.gravty");
-    assert_eq!(e.help.as_deref(), Some("did you mean `gravity`?"));
+    assert_eq!(e.help(), Some("did you mean `gravity`?"));
     assert!(e.message.len() <= 310, "{}", e.message);
     let report = e.report(text);
     assert!(report.contains("`accuracy`"), "{report}");

@@ -23,6 +23,13 @@ pub struct SceneError {
     pub field: String,
     /// The message, quoting no value of a file that failed to parse.
     pub message: String,
+    /// What only the long form ([`SceneError::report`]) shows.
+    pub local: Box<Local>,
+}
+
+/// What a refused scene's long form adds to the short one.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Local {
     /// Where in the scene's text the fault is (bytes), for the report's caret.
     pub span: Option<Range<usize>>,
     /// The message with the values it quotes, for the file's own reader; `message` when
@@ -41,10 +48,13 @@ impl SceneError {
             column: 0,
             field: field.to_string(),
             message,
-            span: None,
-            detail: None,
-            help: None,
+            local: Box::default(),
         }
+    }
+
+    /// What the reader may have meant ("did you mean `ground`?"), if anything.
+    pub fn help(&self) -> Option<&str> {
+        self.local.help.as_deref()
     }
 
     /// The error for the reader of the scene `text` (the text it was parsed from): the
@@ -52,7 +62,7 @@ impl SceneError {
     /// and a suggestion. Plain text, no colours; the first line is the short form with
     /// the values the short form leaves out (a binary's `Error: ` goes before it).
     pub fn report(&self, text: &str) -> String {
-        let message = self.detail.as_deref().unwrap_or(&self.message);
+        let message = self.local.detail.as_deref().unwrap_or(&self.message);
         let path = self.file.display().to_string();
         // The short form's `file:line: field:` first, for editors and `grep`.
         let title = match self.line {
@@ -60,6 +70,7 @@ impl SceneError {
             line => format!("{path}:{line}: {}: {message}", self.field),
         };
         let span = self
+            .local
             .span
             .clone()
             .filter(|s| s.start <= s.end && s.end <= text.len())
@@ -76,7 +87,7 @@ impl SceneError {
             ),
             None => groups.push(Group::with_title(Level::ERROR.primary_title(&title))),
         }
-        if let Some(help) = &self.help {
+        if let Some(help) = &self.local.help {
             groups.push(Group::with_title(Level::HELP.secondary_title(help)));
         }
         let rendered = Renderer::plain().render(&groups);
@@ -171,9 +182,10 @@ impl Ctx<'_> {
             column: self.column_of(span.start),
             field,
             message: message.to_string(),
-            span: Some(span),
-            detail: None,
-            help: None,
+            local: Box::new(Local {
+                span: Some(span),
+                ..Local::default()
+            }),
         }
     }
 
@@ -278,10 +290,12 @@ impl Ctx<'_> {
             line,
             column,
             field,
-            detail: (message != full).then(|| crate::world::short(&full, usize::MAX)),
+            local: Box::new(Local {
+                detail: (message != full).then(|| crate::world::short(&full, usize::MAX)),
+                span: e.span(),
+                help,
+            }),
             message,
-            span: e.span(),
-            help,
         }
     }
 }

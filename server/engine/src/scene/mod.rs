@@ -41,7 +41,7 @@ mod generate;
 mod raw;
 pub mod reference;
 
-pub use error::SceneError;
+pub use error::{Local, SceneError};
 
 use error::{did_you_mean, Ctx};
 use generate::generate;
@@ -271,7 +271,7 @@ fn check_group(
             crate::world::short(group, 64)
         ),
     );
-    e.help = did_you_mean(group, groups.iter().copied().chain([PARTICLES])).or_else(|| {
+    e.local.help = did_you_mean(group, groups.iter().copied().chain([PARTICLES])).or_else(|| {
         Some("a group that bodies join only at run time goes in `groups = [...]`, at the top of the file".into())
     });
     Err(e)
