@@ -414,3 +414,33 @@ fn a_server_stopped_by_sigterm_resumes_bit_for_bit_from_the_same_command_line() 
     let logged = std::fs::read_to_string(&log).unwrap();
     assert!(logged.contains("stopping on SIGINT"), "{logged}");
 }
+
+/// `--resume FILE` needs FILE; `--journal FILE` with it must name the same file.
+#[test]
+fn resume_needs_its_journal_and_journal_names_the_same_file() {
+    let dir = temp_dir();
+    let missing = dir.path().join("missing.journal");
+    let run = |args: &[&str]| {
+        Process::new(bin("ricochet-server"))
+            .args(["run", "--listen", &free_endpoint()])
+            .args(args)
+            .env("RUST_LOG", "warn")
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--resume", missing.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("cannot open the journal"), "{err}");
+    let other = dir.path().join("other.journal");
+    let out = run(&[
+        "--journal",
+        other.to_str().unwrap(),
+        "--resume",
+        missing.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("name different files"), "{err}");
+    assert!(!other.exists(), "nothing was started");
+}

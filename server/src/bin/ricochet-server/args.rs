@@ -131,11 +131,11 @@ pub struct RunArgs {
     /// server stopped or killed), the world it holds is resumed first, bit for bit, and
     /// the journal goes on: the same command line starts a service and restarts it. On
     /// SIGTERM or SIGINT the server checkpoints the world beside FILE and exits.
-    #[arg(long, value_name = "FILE", conflicts_with = "resume")]
+    #[arg(long, value_name = "FILE")]
     pub journal: Option<PathBuf>,
     /// Rebuild the world a journal holds, bit for bit, to its last frame, and go on
     /// (appending to the same journal); FILE must exist (--journal FILE resumes it when
-    /// it exists and starts it otherwise). The journal gives the scene, world name,
+    /// it exists and starts it otherwise; both may name the same FILE). The journal gives the scene, world name,
     /// overrides and limits; --scene, --world, --set and --limit are not needed.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
@@ -221,6 +221,15 @@ impl RunArgs {
                 "--checkpoint-after-ms {}: must be a number of milliseconds above 0",
                 self.checkpoint_after_ms
             );
+        }
+        if let (Some(journal), Some(resume)) = (&self.journal, &self.resume) {
+            if journal != resume {
+                bail!(
+                    "--journal {} and --resume {} name different files: a resumed journal goes on in its own file (--journal FILE alone resumes FILE when it exists)",
+                    journal.display(),
+                    resume.display()
+                );
+            }
         }
         if self.journal_bytes < 4096 {
             bail!(
