@@ -1,4 +1,5 @@
-//! A server killed mid-run (SIGKILL) is resumed from its journal bit for bit: the resumed
+//! A server stopped by SIGTERM checkpoints its world, and the same command line resumes
+//! it. A server killed mid-run (SIGKILL) is resumed from its journal bit for bit: the resumed
 //! world at the last journaled frame is the killed server's at that frame, and from there
 //! it steps to the frames a headless run of the same scene and the journal's commands
 //! gives. A retried request after the resume is answered, not applied again. Real
@@ -14,6 +15,7 @@ use std::time::Duration;
 use common::*;
 use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, ServerCommand, TimedAction};
+use ricochet_protocol::net::{Mode, Network};
 
 /// A dump's lines by frame (the last line may be cut short by a kill: skipped).
 fn dump_lines(path: &Path) -> BTreeMap<u64, String> {
@@ -246,4 +248,199 @@ fn a_killed_server_resumes_from_its_last_checkpoint_bit_for_bit() {
         "the resumed world is the killed one at frame {last}"
     );
     assert!(resumed.contains_key(&(last + 30)), "B stepped on");
+}
+
+/// `ricochet-server run ARGS` on `endpoint` as a service runs it: logging at `info` to
+/// `log`, stopped by a signal. Killed if the test fails first.
+fn service(endpoint: &str, world: &str, args: &[&str], log: &Path) -> Running {
+    let child = Process::new(bin("ricochet-server"))
+        .args(["run", "--world", world, "--listen", endpoint])
+        .args(args)
+        .env("RUST_LOG", "info")
+        .env("NO_COLOR", "1")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::fs::File::create(log).unwrap())
+        .spawn()
+        .expect("ricochet-server starts");
+    let running = Running(child);
+    let client = Client::open(&Network::client(Mode::Peer, vec![endpoint.into()]), world)
+        .expect("client session");
+    wait_answered(&client, world);
+    running
+}
+
+/// `kill -SIGNAL` of the service, then its exit status once it has stopped (bounded).
+fn stop(service: &mut Running, signal: &str) -> std::process::ExitStatus {
+    let pid = service.0.id().to_string();
+    ok(&Process::new("kill")
+        .args([&format!("-{signal}"), &pid])
+        .output()
+        .unwrap());
+    let began = std::time::Instant::now();
+    loop {
+        if let Some(status) = service.0.try_wait().unwrap() {
+            return status;
+        }
+        assert!(
+            began.elapsed() < TIMEOUT,
+            "the server did not stop on {signal}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// A service stopped as systemd or docker stops it (SIGTERM) checkpoints its world and
+/// says so; the same command line again resumes the journal it names (which the first
+/// start created), at the stopped frame, bit for bit, and steps on to the frames a
+/// headless run of the scene and the journal's commands gives. SIGINT stops it too.
+#[test]
+fn a_server_stopped_by_sigterm_resumes_bit_for_bit_from_the_same_command_line() {
+    let dir = temp_dir();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (journal, dump, log) = (path("world.journal"), path("dump.jsonl"), path("log"));
+    let scene = scene("emitters.toml");
+    // No checkpoint before the stop: the journal keeps every command, for the reference.
+    let args = [
+        "--scene",
+        &scene,
+        "--journal",
+        &journal,
+        "--dump",
+        &dump,
+        "--paused",
+        "--checkpoint-after-ms",
+        "1e9",
+    ];
+    assert!(!Path::new(&journal).exists());
+    let endpoint = free_endpoint();
+    let mut a = service(&endpoint, "service", &args, Path::new(&log));
+    let client = Client::open(
+        &Network::client(Mode::Peer, vec![endpoint.clone()]),
+        "service",
+    )
+    .unwrap();
+    spawn_minions(&client, 3, Duration::ZERO);
+    assert!(request(&client, Command::Server(ServerCommand::Step { n: 40 })).ok);
+    spawn_minions(&client, 2, Duration::ZERO);
+    assert!(request(&client, Command::Server(ServerCommand::Step { n: 25 })).ok);
+    let before = std::fs::read_to_string(&journal).unwrap();
+
+    let status = stop(&mut a, "TERM");
+    assert!(status.success(), "{status:?}");
+    let logged = std::fs::read_to_string(&log).unwrap();
+    assert!(
+        logged.contains("stopping on SIGTERM; the world is checkpointed"),
+        "{logged}"
+    );
+    let stopped = dump_lines(Path::new(&dump));
+    let last = *stopped.keys().last().unwrap();
+    assert_eq!(last, 65, "A stepped 65 frames");
+    let text = std::fs::read_to_string(&journal).unwrap();
+    let second = text.lines().nth(1).unwrap();
+    let second = second.rsplit_once('\t').unwrap().0;
+    let second: serde_json::Value = serde_json::from_str(second).unwrap();
+    assert_eq!(
+        second["checkpoint"]["frame"].as_u64(),
+        Some(last),
+        "the journal starts from a checkpoint of the stopped frame: {text}"
+    );
+    assert!(dir
+        .path()
+        .join(format!("world.journal.{last}.checkpoint"))
+        .exists());
+
+    // The same command line: the journal exists, so it is resumed.
+    let mut b = service(&endpoint, "service", &args, Path::new(&log));
+    let more = 50;
+    assert!(request(&client, Command::Server(ServerCommand::Step { n: more })).ok);
+    let resumed = dump_lines(Path::new(&dump));
+    assert_eq!(
+        resumed.keys().next(),
+        Some(&last),
+        "B starts at the stopped frame"
+    );
+    assert_eq!(
+        resumed[&last], stopped[&last],
+        "the resumed world is the stopped one at frame {last}"
+    );
+    let logged = std::fs::read_to_string(&log).unwrap();
+    assert!(
+        logged.contains("the journal exists: resuming it"),
+        "{logged}"
+    );
+
+    // The headless reference: the scene and A's commands, as its journal held them.
+    let mut inputs = String::new();
+    for line in before.lines().skip(1) {
+        let line = line.rsplit_once('\t').map_or(line, |(text, _)| text);
+        let value: serde_json::Value = serde_json::from_str(line).unwrap();
+        if let Ok(Command::World(action)) = serde_json::from_value(value["apply"].clone()) {
+            let timed = TimedAction {
+                frame: value["frame"].as_u64().unwrap(),
+                action,
+            };
+            inputs.push_str(&serde_json::to_string(&timed).unwrap());
+            inputs.push('\n');
+        }
+    }
+    assert!(inputs.lines().count() >= 5, "{inputs}");
+    let inputs_file = path("inputs.jsonl");
+    std::fs::write(&inputs_file, inputs).unwrap();
+    let reference = path("reference.jsonl");
+    ok(&Process::new(bin("ricochet-server"))
+        .args(["simulate", "--scene", &scene])
+        .args(["--inputs", &inputs_file, "--dump", &reference, "--steps"])
+        .arg((last + u64::from(more)).to_string())
+        .output()
+        .unwrap());
+    let reference = dump_lines(Path::new(&reference));
+    for frame in 0..=last {
+        assert_eq!(
+            stopped.get(&frame),
+            reference.get(&frame),
+            "A's frame {frame}"
+        );
+    }
+    for frame in last..=last + u64::from(more) {
+        assert_eq!(
+            resumed.get(&frame),
+            reference.get(&frame),
+            "the resumed frame {frame} is the headless run's"
+        );
+    }
+
+    let status = stop(&mut b, "INT");
+    assert!(status.success(), "{status:?}");
+    let logged = std::fs::read_to_string(&log).unwrap();
+    assert!(logged.contains("stopping on SIGINT"), "{logged}");
+}
+
+/// `--resume FILE` needs FILE; `--journal FILE` with it must name the same file.
+#[test]
+fn resume_needs_its_journal_and_journal_names_the_same_file() {
+    let dir = temp_dir();
+    let missing = dir.path().join("missing.journal");
+    let run = |args: &[&str]| {
+        Process::new(bin("ricochet-server"))
+            .args(["run", "--listen", &free_endpoint()])
+            .args(args)
+            .env("RUST_LOG", "warn")
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--resume", missing.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("cannot open the journal"), "{err}");
+    let other = dir.path().join("other.journal");
+    let out = run(&[
+        "--journal",
+        other.to_str().unwrap(),
+        "--resume",
+        missing.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("name different files"), "{err}");
+    assert!(!other.exists(), "nothing was started");
 }

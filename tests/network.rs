@@ -192,7 +192,7 @@ fn malformed_commands_get_error_replies_and_the_server_keeps_stepping() {
         ),
         (
             br#"{"do":"load","text":"[[body]]\nshape = \"hexagon\""}"#.to_vec(),
-            ":2: shape",
+            ":2: body[0].shape",
         ),
         (Vec::new(), "not JSON"),
     ];

@@ -112,7 +112,7 @@ fn one() -> u32 {
 }
 
 /// A body's shape kind, as scenes and `spawn` name it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ShapeKind {
     Rect,
@@ -122,28 +122,40 @@ pub enum ShapeKind {
 /// A body as a `spawn` or a scene's `[[template]]` gives it: the fields of a scene's
 /// `[[body]]` but its behaviour, each optional but `shape` (and `size` or `radius`),
 /// with a scene's defaults (group `default`, mass 1, restitution 0.8, friction 0.3).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
+    /// The body's name, unique in the world (a spawn without one gets a fresh id; a
+    /// template has none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub id: Option<String>,
+    /// The group it joins (default `default`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub group: Option<String>,
+    /// `rect` (with `size`) or `circle` (with `radius`).
     pub shape: ShapeKind,
+    /// Width and height of a rect, units.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub size: Option<Point>,
+    /// Radius of a circle, units.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radius: Option<f64>,
+    /// Centre, units (a spawn's `at` stands for it; a template has none).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pos: Option<Point>,
+    /// Velocity, units per second (default at rest).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub vel: Option<Point>,
+    /// Mass (default 1; 0 makes it static).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mass: Option<f64>,
+    /// Bounce, 0 to 1 (default 0.8).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub restitution: Option<f64>,
+    /// Coulomb friction coefficient (default 0.3).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub friction: Option<f64>,
+    /// Its own gravity, units per second squared (default the world's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gravity: Option<Point>,
 }

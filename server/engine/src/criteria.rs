@@ -31,7 +31,7 @@ use crate::geometry::{separation, Shape};
 use crate::world::{Side, World};
 
 /// A scene's expectations; each absent criterion is not judged.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct Criteria {
     /// Steps the run is judged over.
@@ -40,6 +40,7 @@ pub struct Criteria {
     /// A box (lower-left, upper-right corners) no dynamic body's centre may leave: a
     /// container's inside, or the near side of a wall.
     #[serde(default)]
+    #[schemars(with = "Option<[[f64; 2]; 2]>")]
     pub inside: Option<[DVec2; 2]>,
     /// Worst distance of a dynamic body from where it was built, in its own sizes.
     #[serde(default)]
@@ -539,6 +540,7 @@ mod tests {
                 speed: None,
                 final_speed: None,
                 energy_rise: None,
+                energy_change: None,
             }
         }
     }

@@ -116,7 +116,9 @@ impl Hosted {
         scene_name: PathBuf,
         opts: &HostOptions,
     ) -> anyhow::Result<Self> {
-        let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)?;
+        // The operator's own file: the long form, with the line and a caret.
+        let world = scene::parse_with(&scene_text, &scene_name, &opts.overrides, &opts.limits)
+            .map_err(|e| anyhow::anyhow!("{}", e.report(&scene_text)))?;
         check_frame_bytes(&world, (0, 0, 0), opts.max_frame_bytes)
             .map_err(|e| anyhow::anyhow!("{}: {e}", scene_name.display()))?;
         Ok(Self::with_world(world, scene_text, scene_name, opts))
@@ -562,6 +564,32 @@ mass = 1
     fn hosted() -> Hosted {
         let opts = HostOptions::for_tests("statics");
         Hosted::load(SCENE.into(), "statics.toml".into(), &opts).unwrap()
+    }
+
+    /// A scene sent over the network is refused in the short form: file, line, field and
+    /// a message on one line that quotes none of its values (the long form, with the
+    /// line and a caret, is for the operator's own files).
+    #[test]
+    fn a_scene_loaded_over_the_network_is_refused_in_the_short_form() {
+        let mut h = hosted();
+        let text = "[[body]]\nshape = \"circle\"\nradius = \"hunter2\"\n";
+        let e = h
+            .adopt_scene(text.into(), "<loaded scene>".into())
+            .unwrap_err();
+        assert!(
+            e.starts_with("<loaded scene>:3: body[0].radius: invalid type"),
+            "{e}"
+        );
+        assert!(
+            !e.contains("hunter2") && !e.contains('\n') && !e.contains('^'),
+            "{e}"
+        );
+        let typo = "[[body]]\nshape = \"circle\"\nradius = 1\n[[interact]]\na = \"default\"\nb = \"grund\"\n";
+        let e = h
+            .adopt_scene(typo.into(), "<loaded scene>".into())
+            .unwrap_err();
+        assert!(e.starts_with("<loaded scene>:6: interact[0].b: "), "{e}");
+        assert!(!e.contains('\n') && !e.contains("did you mean"), "{e}");
     }
 
     #[test]

@@ -220,6 +220,25 @@ pub fn run(opts: HostOptions) -> Result<()> {
         paused = started.host.stepping.paused,
         "serving"
     );
-    let (_worlds, slot) = worlds::Worlds::new(session.clone(), opts);
-    Serving::new(started, wiring, publisher).in_slot(slot).run()
+    let stop = stop_on_signals()?;
+    let (_worlds, slot) = worlds::Worlds::new(session.clone(), opts, stop.clone());
+    Serving::new(started, wiring, publisher, stop)
+        .in_slot(slot)
+        .run()
+}
+
+/// A flag set to the number of the signal (SIGTERM or SIGINT) that asks the server to
+/// stop, which the serving loop reads each pass. A second signal while the first is
+/// being handled ends the process at once (exit status 1).
+fn stop_on_signals() -> Result<std::sync::Arc<std::sync::atomic::AtomicUsize>> {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let stopping = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    for signal in [SIGTERM, SIGINT] {
+        // Registered first, so it sees the flag as the first signal left it.
+        signal_hook::flag::register_conditional_shutdown(signal, 1, stopping.clone())?;
+        signal_hook::flag::register(signal, stopping.clone())?;
+        signal_hook::flag::register_usize(signal, stop.clone(), signal as usize)?;
+    }
+    Ok(stop)
 }

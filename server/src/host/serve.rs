@@ -3,6 +3,8 @@
 //! the world when the clock says a step is due. Each part is a method in a file of its
 //! own: [`super::queries`], [`super::boundary`], [`super::upkeep`], [`super::clock`].
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -37,11 +39,18 @@ pub(super) struct Serving {
     pub upkeep: Upkeep,
     /// Its place among the worlds this server serves (`fork`, `close`).
     pub slot: Option<Slot>,
+    /// The signal that asked the server to stop (SIGTERM, SIGINT), 0 until one has.
+    pub stop: Arc<AtomicUsize>,
 }
 
 impl Serving {
     /// Serves `started` on `wiring`, its frames through `publisher`.
-    pub fn new(started: Started, wiring: Wiring, publisher: Publisher) -> Serving {
+    pub fn new(
+        started: Started,
+        wiring: Wiring,
+        publisher: Publisher,
+        stop: Arc<AtomicUsize>,
+    ) -> Serving {
         let Started {
             host,
             answered,
@@ -61,6 +70,7 @@ impl Serving {
             state: StateCache::default(),
             upkeep: Upkeep::new(),
             slot: None,
+            stop,
         }
     }
 
@@ -70,7 +80,8 @@ impl Serving {
         self
     }
 
-    /// Serves until `max_frames` (or forever).
+    /// Serves until `max_frames`, or until a signal asks it to stop, or `close` does (or
+    /// forever).
     pub fn run(mut self) -> Result<()> {
         // Frame 0: the state before the first step.
         self.publisher.frame(&mut self.host);
@@ -104,6 +115,11 @@ impl Serving {
                     overruns = self.host.stepping.overruns,
                     "stopping after the last frame"
                 );
+                return Ok(());
+            }
+            let signal = self.stop.load(Ordering::Relaxed);
+            if signal != 0 {
+                self.stop(signal);
                 return Ok(());
             }
             if self.host.stepping.pending_steps > 0 {
@@ -158,6 +174,42 @@ impl Serving {
                 self.host.world.frame(),
                 f64::from(self.host.stepping.last_step_ms),
             );
+        }
+    }
+
+    /// Stops on `signal` (a `systemctl stop`, a `docker stop`, a Ctrl-C): a journaled
+    /// world is checkpointed as it is, so the same command line resumes it from this frame
+    /// with nothing to replay; said in the log either way.
+    fn stop(&mut self, signal: usize) {
+        let signal = match signal as i32 {
+            libc::SIGTERM => "SIGTERM",
+            libc::SIGINT => "SIGINT",
+            _ => "a signal",
+        };
+        let frame = self.host.world.frame();
+        let Some(journal) = self.journal.as_mut() else {
+            tracing::info!(frame, "stopping on {signal}");
+            return;
+        };
+        if self.host.stepping.pending_steps > 0 || !self.deferred.is_empty() {
+            // A checkpoint never holds steps still to run: the journal's lines do.
+            tracing::info!(
+                frame,
+                pending_steps = self.host.stepping.pending_steps,
+                "stopping on {signal}; `step` commands in flight, so no checkpoint: the journal's lines resume them"
+            );
+            return;
+        }
+        match journal.checkpoint_now(&self.host, &self.answered, &self.opts.world, &self.opts) {
+            Ok(file) => tracing::info!(
+                frame,
+                checkpoint = %file.display(),
+                "stopping on {signal}; the world is checkpointed beside its journal"
+            ),
+            Err(e) => tracing::error!(
+                frame,
+                "stopping on {signal}: {e:#}; a resume replays the journal"
+            ),
         }
     }
 

@@ -18,11 +18,33 @@ pub(super) struct Started {
     pub opts: HostOptions,
 }
 
-/// Resumes the journal `opts.resume` names, or loads `opts.scene`.
+/// Resumes the journal `opts.resume` names, or the journal `opts.journal` names when that
+/// file exists (a service restarted with the same command line goes on where it stopped),
+/// or loads `opts.scene`.
 pub(super) fn start(opts: &HostOptions) -> Result<Started> {
-    match &opts.resume {
+    let existing = opts
+        .journal
+        .as_ref()
+        .filter(|path| std::fs::metadata(path).is_ok_and(|m| m.len() > 0));
+    match opts.resume.as_ref().or(existing) {
         Some(path) => {
+            if opts.resume.is_none() {
+                tracing::info!(
+                    journal = %path.display(),
+                    "the journal exists: resuming it (its header gives the scene, world, overrides and limits)"
+                );
+            }
             let resumed = journal::resume(path, opts)?;
+            let named = opts
+                .scene
+                .as_ref()
+                .and_then(|s| std::fs::read_to_string(s).ok());
+            if named.is_some_and(|text| text != resumed.host.source.text) {
+                tracing::warn!(
+                    scene = %opts.scene.as_ref().expect("named").display(),
+                    "the scene file differs from the one the journal holds: the journal's runs (delete the journal to start the new scene)"
+                );
+            }
             tracing::info!(
                 journal = %path.display(),
                 world = %resumed.world,

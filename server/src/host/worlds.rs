@@ -4,7 +4,7 @@
 //! stopped by `close`. A fork is not journaled: it lives as long as the server does.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::anyhow;
@@ -28,6 +28,8 @@ pub struct Worlds {
     /// The options every world here runs under (the server's).
     opts: HostOptions,
     served: Mutex<BTreeMap<String, Arc<AtomicBool>>>,
+    /// The signal that stops the server (SIGTERM, SIGINT): every world here stops on it.
+    signal: Arc<AtomicUsize>,
 }
 
 /// One world's place among the [`Worlds`]: its name and the flag that stops it.
@@ -51,11 +53,16 @@ impl Drop for Slot {
 
 impl Worlds {
     /// The worlds of a server whose own world is `opts.world`, on `session`.
-    pub fn new(session: zenoh::Session, opts: &HostOptions) -> (Arc<Worlds>, Slot) {
+    pub fn new(
+        session: zenoh::Session,
+        opts: &HostOptions,
+        signal: Arc<AtomicUsize>,
+    ) -> (Arc<Worlds>, Slot) {
         let worlds = Arc::new(Worlds {
             session,
             opts: opts.clone(),
             served: Mutex::new(BTreeMap::new()),
+            signal,
         });
         let slot = worlds
             .register(&opts.world)
@@ -184,7 +191,8 @@ impl Slot {
             journal: None,
             opts,
         };
-        let serving = Serving::new(started, wiring, publisher).in_slot(slot);
+        let serving =
+            Serving::new(started, wiring, publisher, Arc::clone(&self.worlds.signal)).in_slot(slot);
         std::thread::Builder::new()
             .name(format!("world {}", short(name, 32)))
             .spawn(move || {

@@ -7,7 +7,16 @@ use serde::{Deserialize, Serialize};
 
 /// How positions and velocities advance over one step ("Movement").
 #[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, strum::IntoStaticStr,
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    schemars::JsonSchema,
 )]
 #[serde(rename_all = "snake_case")]
 #[strum(serialize_all = "snake_case")]
@@ -45,7 +54,16 @@ impl Integrator {
 
 /// How rigid collisions are resolved.
 #[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, strum::IntoStaticStr,
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Serialize,
+    Deserialize,
+    strum::IntoStaticStr,
+    schemars::JsonSchema,
 )]
 #[serde(rename_all = "snake_case")]
 #[strum(serialize_all = "snake_case")]
@@ -83,12 +101,14 @@ pub const MAX_ACCELERATION: f64 = 1e9;
 
 /// World parameters. The default holds every kind of scene (see its `Default`);
 /// [`WorldConfig::chapter`] is the chapter's relaxation.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct WorldConfig {
     /// Acceleration applied to rigid bodies that do not override it (units/s²).
+    #[schemars(with = "[f64; 2]")]
     pub gravity: DVec2,
     /// Acceleration applied to particles that do not override it (units/s²).
+    #[schemars(with = "[f64; 2]")]
     pub particle_gravity: DVec2,
     /// The fixed time step in seconds.
     pub dt: f64,
@@ -104,6 +124,7 @@ pub struct WorldConfig {
     /// falls at half the rate). Physically classical scenes turn this off.
     pub mass_scaled_acceleration: bool,
     /// The world's extent, lower-left and upper-right corners: the viewer's camera.
+    #[schemars(with = "[[f64; 2]; 2]")]
     pub bounds: [DVec2; 2],
     /// How rigid collisions are resolved. A scene whose `[world]` names `"relaxation"`
     /// gets the chapter's sub-steps and broad phase ([`WorldConfig::chapter`]) for the

@@ -14,7 +14,7 @@ use serde::Deserialize;
 use super::system::ParticleDef;
 
 /// A number drawn from the world's generator: `base + Σ cᵢ · randᵢ`.
-#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize, schemars::JsonSchema)]
 #[serde(untagged)]
 pub enum Sample {
     Constant(f32),
@@ -53,15 +53,22 @@ impl Sample {
 }
 
 /// A particle recipe. Positions are given when the preset is used.
-#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct ParticlePreset {
+    /// Seconds a particle lives.
     pub life: Sample,
+    /// Red, green, blue, alpha at birth, each from 0 to 1.
     pub color: [Sample; 4],
+    /// Colour at the end of its life, blended over it.
     pub final_color: [Sample; 4],
+    /// Size at birth (units).
     pub size: Sample,
+    /// Factor on the size each frame.
     pub size_delta: Sample,
+    /// Velocity at birth (units/s).
     pub vel: [Sample; 2],
+    /// Factor on the velocity each frame (1: no drag).
     pub drag: Sample,
 }
 

@@ -2,45 +2,35 @@
 //! emitters, presets and the interactions between groups. A bad scene is refused with
 //! the file, line and field at fault.
 //!
-//! ```toml
-//! [world]                      # every field optional; the chapter's defaults
-//! gravity = [0, -50]
-//! relaxation_iterations = 15
+//! docs/scenes.md is the format's reference, written from these types ([`reference`]),
+//! with an example of every table.
 //!
-//! [limits]                     # optional: lower the runner's limits for this world
-//! bodies = 500
+//! ```toml
+//! groups = ["dye_packs"]       # groups joined only at run time, before the first table
+//!
+//! [world]                      # every field optional
+//! gravity = [0, -50]
 //!
 //! [[body]]
-//! id = "hero"
-//! group = "hero"
-//! shape = "rect"               # or "circle" with radius = r
-//! size = [16, 22]
-//! pos = [30, 30]
-//! mass = 0.7                   # 0 = static
-//! behavior = "hero"            # or "minion", "dumb_minion"
-//!
-//! [[generate]]                 # bodies "<id>/0", "<id>/1", ...
-//! kind = "row"                 # "row", "grid", "stack" or "pyramid"
 //! id = "floor"
 //! group = "platforms"
+//! shape = "rect"               # or "circle" with radius = r
 //! size = [30, 3.75]
-//! start = [-15, 2]
-//! step = [30, 0]
-//! count = 9
-//! mass = 0
+//! mass = 0                     # 0 = static
 //!
-//! [[interact]]
-//! a = "hero"
+//! [[interact]]                 # only groups a body, generator, template or `groups` names
+//! a = "dye_packs"
 //! b = "platforms"              # "particles" names the particle side
 //!
 //! [[template]]                 # a body `spawn` may name: {"do":"spawn","template":"ball","at":[x,y]}
 //! name = "ball"
-//! group = "hero"
+//! group = "dye_packs"
 //! shape = "circle"
 //! radius = 1
 //! ```
 
-use std::path::{Path, PathBuf};
+use std::collections::BTreeSet;
+use std::path::Path;
 
 use glam::{DVec2, Vec2, Vec4};
 
@@ -50,34 +40,23 @@ use crate::dynamics::body::BodyDef;
 use crate::dynamics::config::{Solver, WorldConfig};
 use crate::geometry::Shape;
 use crate::particles::ParticleDef;
-use crate::world::{Limits, World};
+use crate::world::{Limits, World, PARTICLES};
 
+mod error;
 mod generate;
 mod raw;
+pub mod reference;
 
+pub use error::{Local, SceneError};
+
+use error::{did_you_mean, Ctx};
 use generate::generate;
 use raw::*;
 
-/// A refused scene: where and why.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{}:{line}: {field}: {message}", file.display())]
-pub struct SceneError {
-    pub file: PathBuf,
-    /// 1-based line of the offending field (or of its table when the field is missing).
-    pub line: usize,
-    /// The field at fault, with its table: `body[2].radius`, `world.dt`.
-    pub field: String,
-    pub message: String,
-}
-
 /// Reads and builds a scene file.
 pub fn load(path: &Path) -> Result<World, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SceneError {
-        file: path.to_path_buf(),
-        line: 0,
-        field: "file".into(),
-        message: e.to_string(),
-    })?;
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| SceneError::unplaced(path, "file", e.to_string()))?;
     parse(&text, path, &[])
 }
 
@@ -113,16 +92,9 @@ pub fn parse_with(
         other => ctx.field_error("world", 0..0, "world", &other.to_string()),
     })?;
     for assignment in overrides {
-        config.set_from_str(assignment).map_err(|e| SceneError {
-            file: PathBuf::from("--set"),
-            line: 0,
-            field: assignment
-                .split('=')
-                .next()
-                .unwrap_or(assignment)
-                .trim()
-                .to_string(),
-            message: e.to_string(),
+        config.set_from_str(assignment).map_err(|e| {
+            let name = assignment.split('=').next().unwrap_or(assignment).trim();
+            SceneError::unplaced(Path::new("--set"), name, e.to_string())
         })?;
     }
     if config.solver == Solver::Relaxation {
@@ -270,9 +242,9 @@ pub fn parse_with(
             toml::Value::Table(fields)
                 .try_into()
                 .map_err(|e: toml::de::Error| {
-                    let message = unquoted(e.message().trim());
-                    let field = backticked(&message)
-                        .filter(|k| is_name(k))
+                    let message = error::unquoted(e.message().trim());
+                    let field = error::backticked(&message)
+                        .filter(|k| error::is_name(k))
                         .unwrap_or("name")
                         .to_string();
                     ctx.field_error(&table, span.clone(), &field, &message)
@@ -286,10 +258,14 @@ pub fn parse_with(
         })?;
     }
 
+    let groups = named_groups(&scene);
     for (i, raw) in scene.interact.iter().enumerate() {
         let it = raw.get_ref();
+        for (side, name) in [("a", &it.a), ("b", &it.b)] {
+            check_group(&ctx, format!("interact[{i}].{side}"), name, &groups)?;
+        }
         world
-            .add_interaction(&it.a, &it.b, it.resolve)
+            .add_interaction(it.a.get_ref(), it.b.get_ref(), it.resolve)
             .map_err(|e| {
                 ctx.field_error(&format!("interact[{i}]"), raw.span(), "b", &e.to_string())
             })?;
@@ -305,6 +281,52 @@ pub fn parse_with(
         ctx.field_error("world", span, "solver", &e.to_string())
     })?;
     Ok(world)
+}
+
+/// The groups an interaction may name: those the scene's bodies and generators belong
+/// to, and those its `groups` list names for bodies that join them only at run time.
+/// (`particles`, the particle side, is always there.)
+fn named_groups(scene: &SceneFile) -> BTreeSet<&str> {
+    let bodies = scene.body.iter().map(|b| b.get_ref().group.as_str());
+    let generated = scene.generate.iter().map(|g| g.get_ref().group.as_str());
+    let listed = scene.groups.iter().map(|g| g.get_ref().as_str());
+    let templates = scene.template.iter().map(|t| {
+        t.get_ref()
+            .get("group")
+            .and_then(toml::Value::as_str)
+            .unwrap_or("default")
+    });
+    bodies
+        .chain(generated)
+        .chain(listed)
+        .chain(templates)
+        .collect()
+}
+
+/// Refuses an interaction's side that names a group no body will ever be in (a typo
+/// there would turn a collision off without a word).
+fn check_group(
+    ctx: &Ctx,
+    field: String,
+    name: &toml::Spanned<String>,
+    groups: &BTreeSet<&str>,
+) -> Result<(), SceneError> {
+    let group = name.get_ref().as_str();
+    if group == PARTICLES || groups.contains(group) {
+        return Ok(());
+    }
+    let mut e = ctx.error_at(
+        name.span(),
+        field,
+        &format!(
+            "no body or generator is in group `{}` and the scene's `groups` list does not name it",
+            crate::world::short(group, 64)
+        ),
+    );
+    e.local.help = did_you_mean(group, groups.iter().copied().chain([PARTICLES])).or_else(|| {
+        Some("a group that bodies join only at run time goes in `groups = [...]`, at the top of the file".into())
+    });
+    Err(e)
 }
 
 /// The scene's `[criteria]` (see [`crate::criteria`]), if it states any; a bad table is
@@ -406,150 +428,4 @@ fn behavior_of(kind: Option<BehaviorKind>, vel: DVec2) -> Behavior {
         },
         Some(BehaviorKind::DumbMinion) => Behavior::DumbMinion,
     }
-}
-
-/// The scene's text and name, for locating errors.
-struct Ctx<'a> {
-    text: &'a str,
-    file: &'a Path,
-}
-
-impl Ctx<'_> {
-    fn line_of(&self, offset: usize) -> usize {
-        let offset = offset.min(self.text.len());
-        self.text[..offset].bytes().filter(|&b| b == b'\n').count() + 1
-    }
-
-    /// The line of `field = ...` inside the span of a table, or the table's first line.
-    fn field_line(&self, span: &std::ops::Range<usize>, field: &str) -> usize {
-        let (start, end) = (
-            span.start.min(self.text.len()),
-            span.end.min(self.text.len()),
-        );
-        let mut offset = start;
-        for line in self.text[start..end].split_inclusive('\n') {
-            let trimmed = line.trim_start();
-            if let Some(rest) = trimmed.strip_prefix(field) {
-                if rest.trim_start().starts_with('=') {
-                    return self.line_of(offset);
-                }
-            }
-            offset += line.len();
-        }
-        // A field left out: point at the table's header, the line before its body.
-        let line = self.line_of(start);
-        let header = self.text[..start]
-            .trim_end()
-            .rfind('\n')
-            .map_or(1, |i| self.line_of(i + 1));
-        if self.text[..start].trim_end().ends_with(']') {
-            header
-        } else {
-            line
-        }
-    }
-
-    fn field_error(
-        &self,
-        table: &str,
-        span: std::ops::Range<usize>,
-        field: &str,
-        message: &str,
-    ) -> SceneError {
-        SceneError {
-            file: self.file.to_path_buf(),
-            line: self.field_line(&span, field),
-            field: format!("{table}.{field}"),
-            message: message.to_string(),
-        }
-    }
-
-    fn parse_error(&self, e: &toml::de::Error) -> SceneError {
-        let (line, field) = match e.span() {
-            Some(span) => {
-                let line = self.line_of(span.start);
-                let text_line = self.text.lines().nth(line - 1).unwrap_or("");
-                let key = text_line
-                    .split_once('=')
-                    .map(|(k, _)| k.trim().to_string())
-                    .filter(|k| is_name(k));
-                // A table header as written (`[[body]`), where its name has a name's form.
-                let header = Some(text_line.trim())
-                    .filter(|l| l.starts_with('[') && l.len() <= 68)
-                    .filter(|l| is_name(l.trim_matches(['[', ']'])))
-                    .map(str::to_string);
-                let field = key
-                    .or(header)
-                    .or_else(|| {
-                        backticked(e.message())
-                            .filter(|k| is_name(k))
-                            .map(str::to_string)
-                    })
-                    .unwrap_or_else(|| "scene".to_string());
-                (line, field)
-            }
-            None => (
-                0,
-                backticked(e.message())
-                    .filter(|k| is_name(k))
-                    .unwrap_or("scene")
-                    .to_string(),
-            ),
-        };
-        // No text of the file is quoted (a file that is not a scene may hold secrets):
-        // a field only where it has the form of a name, and the message with every quoted
-        // value taken out.
-        SceneError {
-            file: self.file.to_path_buf(),
-            line,
-            field,
-            message: crate::world::short(&unquoted(e.message().trim()), 300),
-        }
-    }
-}
-
-/// Whether `s` has the form of a TOML key or table name (letters, digits, `_`, `-`,
-/// `.`; at most 64 bytes): only such a piece of a file is named in an error.
-fn is_name(s: &str) -> bool {
-    !s.is_empty()
-        && s.len() <= 64
-        && s.bytes()
-            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.'))
-}
-
-/// A parser's message with what it quotes of the file taken out: text in double quotes
-/// becomes `"…"`, and a backticked piece `` `…` `` unless it is what the parser
-/// expected (names and tokens such as `` `=` ``) or an unknown field's name.
-fn unquoted(message: &str) -> String {
-    let mut out = String::with_capacity(message.len());
-    let mut rest = message;
-    while let Some(k) = rest.find(['"', '`']) {
-        let q = rest[k..].chars().next().expect("found");
-        out.push_str(&rest[..k]);
-        let after = &rest[k + 1..];
-        let Some(end) = after.find(q) else {
-            out.push(q);
-            out.push('…');
-            return out;
-        };
-        let inner = &after[..end];
-        // Kept: the parser's alternatives (after "expected") and an unknown field's name;
-        // a value it quotes (an unknown variant, a number of the wrong type) is not.
-        let told = out.contains("expected") || out.ends_with("field ");
-        let keep =
-            q == '`' && told && (is_name(inner) || inner.bytes().all(|b| b.is_ascii_punctuation()));
-        out.push(q);
-        out.push_str(if keep { inner } else { "…" });
-        out.push(q);
-        rest = &after[end + 1..];
-    }
-    out.push_str(rest);
-    out
-}
-
-/// The first `name` in backticks of a serde message ("unknown field `siz`").
-fn backticked(message: &str) -> Option<&str> {
-    let start = message.find('`')? + 1;
-    let len = message[start..].find('`')?;
-    Some(&message[start..start + len])
 }

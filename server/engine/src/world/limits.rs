@@ -15,7 +15,7 @@ use super::{Side, World, PARTICLE_GRID_MIN_SHAPES};
 
 /// A world's limits. Every count is a maximum; [`Limits::default`] gives the defaults
 /// documented on each field, which every shipped scene fits.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default, deny_unknown_fields)]
 pub struct Limits {
     /// Rigid bodies, static ones included (default 100 000).

@@ -104,12 +104,15 @@ impl Subject {
         // that protects a server from its peers does not apply.
         let limits = Limits::unbounded();
         let all: Vec<String> = overrides.iter().chain(&self.base).cloned().collect();
-        Ok(scene::parse_with(&self.text, &self.path, &all, &limits)?)
+        // The user's own file: its errors in the long form, with the line and a caret.
+        scene::parse_with(&self.text, &self.path, &all, &limits)
+            .map_err(|e| anyhow::anyhow!("{}", e.report(&self.text)))
     }
 
     /// The scene's own `[criteria]`, if it states any.
     pub fn criteria(&self) -> Result<Option<Criteria>> {
-        Ok(scene::criteria(&self.text, &self.path)?)
+        scene::criteria(&self.text, &self.path)
+            .map_err(|e| anyhow::anyhow!("{}", e.report(&self.text)))
     }
 
     /// The scene's length unit: the median size (larger side, or diameter) of its dynamic

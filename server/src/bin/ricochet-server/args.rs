@@ -128,12 +128,15 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 4096, value_name = "N")]
     pub queue: usize,
     /// Write every accepted command, with the frame it took effect in, and every stepped
-    /// frame to FILE (JSON Lines, each line flushed as written), so the world can be
-    /// resumed after a crash with --resume FILE.
-    #[arg(long, value_name = "FILE", conflicts_with = "resume")]
+    /// frame to FILE (JSON Lines, each line flushed as written). When FILE exists (a
+    /// server stopped or killed), the world it holds is resumed first, bit for bit, and
+    /// the journal goes on: the same command line starts a service and restarts it. On
+    /// SIGTERM or SIGINT the server checkpoints the world beside FILE and exits.
+    #[arg(long, value_name = "FILE")]
     pub journal: Option<PathBuf>,
     /// Rebuild the world a journal holds, bit for bit, to its last frame, and go on
-    /// (appending to the same journal). The journal gives the scene, world name,
+    /// (appending to the same journal); FILE must exist (--journal FILE resumes it when
+    /// it exists and starts it otherwise; both may name the same FILE). The journal gives the scene, world name,
     /// overrides and limits; --scene, --world, --set and --limit are not needed.
     #[arg(long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
@@ -242,6 +245,15 @@ impl RunArgs {
         }
         if self.max_worlds == 0 {
             bail!("--max-worlds 0: the server serves its own world at least");
+        }
+        if let (Some(journal), Some(resume)) = (&self.journal, &self.resume) {
+            if journal != resume {
+                bail!(
+                    "--journal {} and --resume {} name different files: a resumed journal goes on in its own file (--journal FILE alone resumes FILE when it exists)",
+                    journal.display(),
+                    resume.display()
+                );
+            }
         }
         if self.journal_bytes < 4096 {
             bail!(

@@ -51,7 +51,11 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     )? {
         eprintln!("{}", pick.reason());
     }
-    let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)?;
+    let mut world: World = scene::parse_with(&text, scene_path, &overrides, &limits)
+        .map_err(|e| anyhow::anyhow!("{}", e.report(&text)))?;
+    if steps == 0 {
+        eprintln!("{}", groups_report(&world));
+    }
     let inputs = match inputs {
         Some(p) => ricochet_server::scenes::read_inputs(p)?,
         None => Vec::new(),
@@ -166,4 +170,39 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         eprintln!("{}", w.summary());
     }
     Ok(())
+}
+
+/// What `--steps 0` says of a scene's groups (the scene refuses an interaction naming a
+/// group that no body, generator or `groups` entry names): each group with its bodies,
+/// and the interactions between them.
+fn groups_report(world: &World) -> String {
+    let mut counts = vec![0usize; world.group_names().count()];
+    for body in world.bodies() {
+        counts[body.group as usize] += 1;
+    }
+    let groups: Vec<String> = world
+        .group_names()
+        .zip(&counts)
+        .map(|(name, n)| match n {
+            0 => format!("{name} (no body yet: joined at run time)"),
+            1 => format!("{name} (1 body)"),
+            n => format!("{name} ({n} bodies)"),
+        })
+        .collect();
+    let side = |s: &ricochet_engine::world::Side| match s {
+        ricochet_engine::world::Side::Particles => ricochet_engine::world::PARTICLES.to_string(),
+        ricochet_engine::world::Side::Group(g) => world.group_name(*g).to_string(),
+    };
+    let interactions: Vec<String> = world
+        .interactions()
+        .iter()
+        .map(|i| format!("{}-{}", side(&i.a), side(&i.b)))
+        .collect();
+    format!(
+        "groups checked: every interaction names a group of the scene; {} groups: {}; {} interactions: {}",
+        groups.len(),
+        groups.join(", "),
+        interactions.len(),
+        interactions.join(", ")
+    )
 }

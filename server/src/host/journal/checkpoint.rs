@@ -206,6 +206,34 @@ impl Journal {
         }
     }
 
+    /// A checkpoint of `host` taken now and waited for (the last one, as the server
+    /// stops): a checkpoint being written is finished first. The checkpoint's file, once
+    /// the journal starts from it.
+    pub fn checkpoint_now(
+        &mut self,
+        host: &Hosted,
+        answered: &Answered,
+        world: &str,
+        opts: &HostOptions,
+    ) -> Result<PathBuf> {
+        self.poll(true);
+        self.checkpoint(host, answered, world, opts);
+        self.poll(true);
+        let frame = host.world.frame();
+        match &self.checkpoint {
+            Some(file) if file.ends_with(&format!(".{frame}.checkpoint")) => Ok(self
+                .path
+                .parent()
+                .map(Path::to_path_buf)
+                .unwrap_or_default()
+                .join(file)),
+            _ => bail!(
+                "the checkpoint of frame {frame} was not taken (the journal {} goes on whole)",
+                self.path.display()
+            ),
+        }
+    }
+
     /// Once a checkpoint being written is whole on disk: the journal starts again from it
     /// (its header, the line naming it, and the lines written since its frame), and the
     /// checkpoint before it is removed. Does nothing while it is being written, unless
