@@ -15,7 +15,7 @@
 //! [`World::save`] writes it).
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -94,9 +94,12 @@ fn write_whole(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = PathBuf::from(tmp);
     let mut file =
         File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-    file.write_all(bytes)
-        .and_then(|()| file.sync_all())
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    if let Err(e) = file.write_all(bytes).and_then(|()| file.sync_all()) {
+        // A full disk: what was written in part goes, not to hold the room it took.
+        drop(file);
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e).with_context(|| format!("cannot write {}", tmp.display()));
+    }
     std::fs::rename(&tmp, path)
         .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
 }
@@ -113,9 +116,11 @@ pub(super) struct Pending {
 
 impl Journal {
     /// Whether the journal has grown past its bound (in bytes or in replay time) and no
-    /// checkpoint is being written.
+    /// checkpoint is being written. Never while lines are owed: they happened before the
+    /// checkpoint's frame, and belong to the journal it would replace.
     pub fn checkpoint_due(&self) -> bool {
         self.pending.is_none()
+            && self.owed.is_empty()
             && (self.since.bytes >= self.policy.journal_bytes
                 || self.since.step_ms >= self.policy.replay_ms)
     }
@@ -250,7 +255,9 @@ impl Journal {
             .append(true)
             .open(&self.path)
             .with_context(|| format!("cannot append to the journal {}", self.path.display()))?;
-        self.out = BufWriter::new(appended);
+        self.out = appended;
+        self.len = text.len() as u64;
+        self.cut = false;
         if let Some(old) = self.checkpoint.replace(file.clone()) {
             if old != file {
                 let _ = std::fs::remove_file(dir.join(old));
@@ -306,6 +313,13 @@ pub fn remove_strays(journal: &Path, keep: Option<&str>) {
     }
 }
 
+/// The largest checkpoint a world within `limits` can make, about: a generous size per
+/// body (its solver data, id, contacts and grid box) and per particle, and room for the
+/// scene's text and the answers a host remembers. A checkpoint is read at most this far.
+pub fn max_bytes(limits: &ricochet_engine::world::Limits) -> u64 {
+    (64 << 20) + u64::from(limits.bodies) * 4096 + u64::from(limits.particles) * 256
+}
+
 /// Reads the checkpoint a journal at `journal` names, checked against its line, and
 /// restores the host it holds under `opts` (its limits, not the checkpoint's).
 pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) -> Result<Restored> {
@@ -325,8 +339,11 @@ pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) ->
     }
     let dir = journal.parent().map(Path::to_path_buf).unwrap_or_default();
     let path = dir.join(name);
-    let bytes = std::fs::read(&path)
-        .with_context(|| format!("cannot read the checkpoint {}", path.display()))?;
+    let bytes = super::files::read_bounded(
+        &path,
+        "checkpoint",
+        reference.bytes.min(max_bytes(&opts.limits)),
+    )?;
     if bytes.len() as u64 != reference.bytes
         || format!("{:08x}", crc32fast::hash(&bytes)) != reference.crc
     {

@@ -30,14 +30,21 @@
 //! of resuming silently into another world (JSON text never holds a raw tab). Journals of
 //! version 1 have no checksums and still resume.
 //!
-//! Each line is flushed to the operating system as it is written: a killed process loses
+//! Each line is handed to the operating system as it is written: a killed process loses
 //! nothing written (a machine that loses power may lose what the OS had not yet stored).
+//!
+//! A write that fails (a full disk) leaves the journal whole: what it wrote in part is
+//! cut off again, so the file ends with the last whole line. A command's line that cannot
+//! be written is dropped and the command refused; a line of what happened anyway (a
+//! frame stepped, a reply) is owed, kept in memory and written before any later line once
+//! the disk has room, so the journal never skips a frame. A resume drops a torn last line
+//! (no newline, or a checksum that does not match, at the end of the file), saying so.
 //! A resume replays the lines in order: the same scene, commands and steps give the same
 //! world, bit for bit, since the engine is deterministic; the resumed server then appends
 //! to the same journal.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -171,8 +178,16 @@ pub enum Intent<'a> {
 
 /// An open journal, appended to.
 pub struct Journal {
-    out: BufWriter<File>,
+    out: File,
     path: PathBuf,
+    /// Bytes of the whole lines on disk: where the file is cut back to when a write
+    /// fails part way.
+    len: u64,
+    /// Whether a failed write may have left bytes after `len` that are still to be cut.
+    cut: bool,
+    /// Lines of what happened (frames stepped, replies) whose write failed, in order:
+    /// written before any later line.
+    owed: String,
     /// When to take a checkpoint, and how far the journal has come since the last.
     policy: Checkpoints,
     since: Since,
@@ -195,23 +210,30 @@ impl Journal {
     pub fn create(path: &Path, world: &str, host: &Hosted, opts: &HostOptions) -> Result<Journal> {
         let file = File::create(path)
             .with_context(|| format!("cannot create the journal {}", path.display()))?;
-        let mut journal = Journal::appending(file, path, opts.checkpoints, None);
+        let mut journal = Journal::appending(file, path, 0, opts.checkpoints, None);
         let header = Header::of(world, host, opts);
-        journal.write(&serde_json::to_string(&header).expect("headers serialise"))?;
+        journal.write(
+            &serde_json::to_string(&header).expect("headers serialise"),
+            false,
+        )?;
         Ok(journal)
     }
 
-    /// A journal appending to `file` (at `path`), starting from `checkpoint` if it names
-    /// one.
+    /// A journal appending to `file` (at `path`, `len` bytes of whole lines), starting
+    /// from `checkpoint` if it names one.
     fn appending(
         file: File,
         path: &Path,
+        len: u64,
         policy: Checkpoints,
         checkpoint: Option<String>,
     ) -> Journal {
         Journal {
-            out: BufWriter::new(file),
+            out: file,
             path: path.to_path_buf(),
+            len,
+            cut: false,
+            owed: String::new(),
             policy,
             since: Since::default(),
             checkpoint,
@@ -219,21 +241,68 @@ impl Journal {
         }
     }
 
-    fn write(&mut self, line: &str) -> Result<()> {
+    /// Writes `line` after any owed ones. On a failure nothing of it stays on disk; the
+    /// line is then owed if `owed` (what happened anyway), or dropped.
+    fn write(&mut self, line: &str, owed: bool) -> Result<()> {
         let line = signed(line);
-        self.since.bytes += line.len() as u64 + 1;
-        if let Some(pending) = self.pending.as_mut() {
-            pending.lines.push(line.clone());
+        let mut text = std::mem::take(&mut self.owed);
+        let before = text.len();
+        text.push_str(&line);
+        text.push('\n');
+        match self.put(&text) {
+            Ok(()) => {
+                self.since.bytes += text.len() as u64;
+                if let Some(pending) = self.pending.as_mut() {
+                    pending.lines.extend(text.lines().map(str::to_string));
+                }
+                Ok(())
+            }
+            Err(e) => {
+                if !owed {
+                    text.truncate(before);
+                }
+                self.owed = text;
+                Err(e).with_context(|| format!("cannot write the journal {}", self.path.display()))
+            }
         }
-        writeln!(self.out, "{line}")
-            .and_then(|()| self.out.flush())
-            .with_context(|| format!("cannot write the journal {}", self.path.display()))
+    }
+
+    /// Appends `text` (whole lines) to the file, or nothing: what a failed write left is
+    /// cut off, now or before the next write.
+    fn put(&mut self, text: &str) -> std::io::Result<()> {
+        if self.cut {
+            self.out.set_len(self.len)?;
+            self.out.seek(SeekFrom::Start(self.len))?;
+            self.cut = false;
+        }
+        match self.out.write_all(text.as_bytes()) {
+            Ok(()) => {
+                self.len += text.len() as u64;
+                Ok(())
+            }
+            Err(e) => {
+                self.cut = true;
+                let cut = self
+                    .out
+                    .set_len(self.len)
+                    .and_then(|()| self.out.seek(SeekFrom::Start(self.len)));
+                if cut.is_ok() {
+                    self.cut = false;
+                }
+                Err(e)
+            }
+        }
+    }
+
+    /// Bytes owed: lines of what happened that wait for room on the disk.
+    pub fn owed_bytes(&self) -> usize {
+        self.owed.len()
     }
 
     fn line(&mut self, line: &Line) {
         let text = serde_json::to_string(line).expect("journal lines serialise");
-        if let Err(e) = self.write(&text) {
-            tracing::error!("{e:#}");
+        if let Err(e) = self.write(&text, true) {
+            tracing::error!("{e:#} ({} bytes owed until it can)", self.owed.len());
         }
     }
 
@@ -270,7 +339,10 @@ impl Journal {
                 id,
             },
         };
-        self.write(&serde_json::to_string(&line).expect("journal lines serialise"))
+        self.write(
+            &serde_json::to_string(&line).expect("journal lines serialise"),
+            false,
+        )
     }
 
     /// A journal every write to fails, as on a full disk: `/dev/full`.
@@ -281,7 +353,7 @@ impl Journal {
             .write(true)
             .open(&path)
             .expect("/dev/full");
-        Journal::appending(file, &path, Checkpoints::default(), None)
+        Journal::appending(file, &path, 0, Checkpoints::default(), None)
     }
 
     /// The reply of the command [`Journal::before`] wrote last, if it had an id.
@@ -303,6 +375,7 @@ impl Journal {
 }
 
 mod checkpoint;
+mod files;
 mod resume;
 pub use checkpoint::{remove_strays, CheckpointRef, Checkpoints};
 pub use resume::{resume, Resumed};
