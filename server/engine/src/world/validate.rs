@@ -234,6 +234,9 @@ impl World {
                     format!("key {} not below the next key {}", b.key.0, self.next_key),
                 ));
             }
+            if info.id.chars().any(char::is_control) {
+                return Err(bad(format!("infos[{i}].id"), "holds a control character"));
+            }
             let behaviour_ok = match info.behavior {
                 Behavior::Patrol { speed, dir } => speed.is_finite() && dir.is_finite(),
                 Behavior::DyePack { heading, .. } => finite2(heading),
