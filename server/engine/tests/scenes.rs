@@ -286,16 +286,9 @@ fn a_refusal_never_quotes_the_files_text() {
 #[test]
 fn names_with_control_characters_are_refused_naming_the_field() {
     let body = |id: &str, group: &str| {
-        format!(
-            "[[body]]\nid = \"{id}\"\ngroup = \"{group}\"\nshape = \"rect\"\nsize = [1, 1]\n"
-        )
+        format!("[[body]]\nid = \"{id}\"\ngroup = \"{group}\"\nshape = \"rect\"\nsize = [1, 1]\n")
     };
-    refused(
-        &body("a", "red\\u001b[2J"),
-        3,
-        "body[0].group",
-        "U+001B",
-    );
+    refused(&body("a", "red\\u001b[2J"), 3, "body[0].group", "U+001B");
     refused(&body("a\\nb", "boxes"), 2, "body[0].id", "U+000A");
     refused(
         "[[generate]]\nkind = \"row\"\nid = \"row\"\ngroup = \"x\\ty\"\nshape = \"rect\"\nsize = [1, 1]\ncount = 2\n",

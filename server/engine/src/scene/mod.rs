@@ -257,9 +257,8 @@ pub fn parse_with(
     for (i, raw) in scene.interact.iter().enumerate() {
         let it = raw.get_ref();
         for (field, name) in [("a", &it.a), ("b", &it.b)] {
-            plain_name(name).map_err(|m| {
-                ctx.field_error(&format!("interact[{i}]"), raw.span(), field, &m)
-            })?;
+            plain_name(name)
+                .map_err(|m| ctx.field_error(&format!("interact[{i}]"), raw.span(), field, &m))?;
         }
         world
             .add_interaction(&it.a, &it.b, it.resolve)
