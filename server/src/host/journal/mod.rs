@@ -251,6 +251,13 @@ impl Journal {
         text.push('\n');
         match self.put(&text) {
             Ok(()) => {
+                if before > 0 {
+                    tracing::warn!(
+                        journal = %self.path.display(),
+                        bytes = before,
+                        "the journal can be written again: the lines owed are written"
+                    );
+                }
                 self.since.bytes += text.len() as u64;
                 if let Some(pending) = self.pending.as_mut() {
                     pending.lines.extend(text.lines().map(str::to_string));
@@ -294,15 +301,16 @@ impl Journal {
         }
     }
 
-    /// Bytes owed: lines of what happened that wait for room on the disk.
-    pub fn owed_bytes(&self) -> usize {
-        self.owed.len()
-    }
-
+    /// Writes a line of what happened: owed if it cannot be written. Said once when
+    /// the journal starts to owe, and once when it has paid (not every frame between).
     fn line(&mut self, line: &Line) {
         let text = serde_json::to_string(line).expect("journal lines serialise");
-        if let Err(e) = self.write(&text, true) {
-            tracing::error!("{e:#} ({} bytes owed until it can)", self.owed.len());
+        let owing = !self.owed.is_empty();
+        match self.write(&text, true) {
+            Err(e) if !owing => tracing::error!(
+                "{e:#}: the lines of what happens are kept in memory until it can, and commands refused"
+            ),
+            Err(_) | Ok(()) => {}
         }
     }
 
