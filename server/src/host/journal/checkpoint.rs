@@ -67,7 +67,7 @@ pub struct CheckpointRef {
 /// What a checkpoint holds.
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct State {
+pub(super) struct State {
     scene_name: PathBuf,
     scene_text: String,
     paused: bool,
@@ -76,7 +76,7 @@ struct State {
     accuracy: Option<String>,
     answers: Vec<Remembered>,
     #[serde(with = "serde_bytes")]
-    world: Vec<u8>,
+    pub(super) world: Vec<u8>,
 }
 
 /// A restored checkpoint: the host and the answers it remembered (ages as at the

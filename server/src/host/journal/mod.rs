@@ -389,4 +389,6 @@ pub use checkpoint::{remove_strays, CheckpointRef, Checkpoints};
 pub use resume::{resume, Resumed};
 
 #[cfg(test)]
+mod fuzz;
+#[cfg(test)]
 mod tests;
