@@ -241,7 +241,7 @@ impl PairSet {
             .or_else(|reason| bad("grid", reason))?;
         for (i, f) in self.fat.iter().enumerate() {
             let Some(place) = f.place else { continue };
-            if !(f.min.is_finite() && f.max.is_finite()) || !self.grid.holds(place) {
+            if !(f.min.is_finite() && f.max.is_finite() && self.grid.holds(place)) {
                 return bad(&format!("fat[{i}]"), "a box or cells out of range".into());
             }
             if bodies[i].group as usize >= self.groups {

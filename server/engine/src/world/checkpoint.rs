@@ -77,6 +77,9 @@ mod tests {
 
     use super::*;
 
+    /// A change made to a checkpoint's CBOR, as an attacker would.
+    type Change = Box<dyn FnOnce(&mut ciborium::Value)>;
+
     /// The 10-level pyramid with particles and an emitter, stepped until its contacts,
     /// the grid's boxes and the solver's blocks all hold state.
     fn stepped() -> World {
@@ -156,7 +159,7 @@ mod tests {
         // Whole (and with every part of its state in use): restored.
         assert!(!world.contacts.pairs.is_empty() && !world.particles.is_empty());
         assert_eq!(crafted(&world, limits.clone(), |_| {}), "accepted");
-        let cases: Vec<(&str, Box<dyn FnOnce(&mut Value)>)> = vec![
+        let cases: Vec<(&str, Change)> = vec![
             // dt = 1e300 panicked in Duration arithmetic.
             (
                 "config",
@@ -249,9 +252,7 @@ mod tests {
             bodies: bodies - 1,
             ..world.limits().clone()
         };
-        let e = World::restore(&world.save(), limits)
-            .err()
-            .expect("refused");
+        let e = World::restore(&world.save(), limits).expect_err("refused");
         assert!(
             e.to_string().contains("`bodies`") && e.to_string().contains("limit"),
             "{e}"
@@ -260,9 +261,7 @@ mod tests {
             particles: 1,
             ..world.limits().clone()
         };
-        let e = World::restore(&world.save(), limits)
-            .err()
-            .expect("refused");
+        let e = World::restore(&world.save(), limits).expect_err("refused");
         assert!(e.to_string().contains("`particles`"), "{e}");
     }
 
@@ -281,9 +280,7 @@ mod tests {
                     .to_vec(),
             ),
         )]);
-        let e = World::restore(&signed(&value), world.limits().clone())
-            .err()
-            .expect("refused");
+        let e = World::restore(&signed(&value), world.limits().clone()).expect_err("refused");
         assert!(e.to_string().contains("`pair_set.fat["), "{e}");
     }
 }

@@ -396,6 +396,9 @@ mod tests {
     use super::super::{resume, Intent};
     use super::*;
 
+    /// A change made to a checkpoint's CBOR, as an attacker would.
+    type Change = Box<dyn FnOnce(&mut ciborium::Value)>;
+
     fn options(policy: Checkpoints) -> HostOptions {
         HostOptions {
             checkpoints: policy,
@@ -711,7 +714,7 @@ mod tests {
         let file = dir.path().join(&reference.file);
         let good = std::fs::read(&file).unwrap();
         let journal = std::fs::read(&path).unwrap();
-        let cases: Vec<(&str, Box<dyn FnOnce(&mut Value)>)> = vec![
+        let cases: Vec<(&str, Change)> = vec![
             // Panicked in Duration arithmetic.
             (
                 "`config`",
