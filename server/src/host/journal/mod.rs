@@ -37,7 +37,8 @@
 //! cut off again, so the file ends with the last whole line. A command's line that cannot
 //! be written is dropped and the command refused; a line of what happened anyway (a
 //! frame stepped, a reply) is owed, kept in memory and written before any later line once
-//! the disk has room, so the journal never skips a frame. A resume drops a torn last line
+//! the disk has room, so the journal never skips a frame (at most [`MAX_OWED_BYTES`]: past
+//! them it stops at its last whole line, and refuses commands). A resume drops a torn last line
 //! (no newline, or a checksum that does not match, at the end of the file), saying so.
 //! A resume replays the lines in order: the same scene, commands and steps give the same
 //! world, bit for bit, since the engine is deterministic; the resumed server then appends
@@ -47,7 +48,7 @@ use std::fs::File;
 use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use ricochet_protocol::command::{Command, Reply};
 use serde::{Deserialize, Serialize};
 
@@ -58,6 +59,12 @@ use super::HostOptions;
 /// The journal's format version: 4 may start from a checkpoint; 3 writes a command before
 /// it runs, 2 once it ran; all have a checksum on every line, 1 none.
 pub const VERSION: u32 = 4;
+
+/// The most bytes of lines a journal owes while its disk is full: about four hours of
+/// frames at 60 Hz. Past it the journal stops at its last whole line (what it holds
+/// resumes, every accepted command included) and every command is refused: the memory a
+/// full disk takes is bounded.
+pub const MAX_OWED_BYTES: usize = 16 << 20;
 
 /// A journal line as written: its text, a tab and the text's CRC-32.
 fn signed(text: &str) -> String {
@@ -188,6 +195,10 @@ pub struct Journal {
     /// Lines of what happened (frames stepped, replies) whose write failed, in order:
     /// written before any later line.
     owed: String,
+    /// The most bytes owed: past it the journal stops (see [`Journal::write`]).
+    max_owed: usize,
+    /// Stopped at its last whole line: every command is refused until a resume.
+    stopped: bool,
     /// When to take a checkpoint, and how far the journal has come since the last.
     policy: Checkpoints,
     since: Since,
@@ -234,6 +245,8 @@ impl Journal {
             len,
             cut: false,
             owed: String::new(),
+            max_owed: MAX_OWED_BYTES,
+            stopped: false,
             policy,
             since: Since::default(),
             checkpoint,
@@ -244,6 +257,13 @@ impl Journal {
     /// Writes `line` after any owed ones. On a failure nothing of it stays on disk; the
     /// line is then owed if `owed` (what happened anyway), or dropped.
     fn write(&mut self, line: &str, owed: bool) -> Result<()> {
+        if self.stopped {
+            bail!(
+                "the journal {} stopped at its last whole line while its disk was full (more than {} bytes of lines owed); resume it (--resume) to go on",
+                self.path.display(),
+                self.max_owed
+            );
+        }
         let line = signed(line);
         let mut text = std::mem::take(&mut self.owed);
         let before = text.len();
@@ -269,6 +289,15 @@ impl Journal {
                     text.truncate(before);
                 }
                 self.owed = text;
+                if self.owed.len() > self.max_owed {
+                    self.stopped = true;
+                    self.owed = String::new();
+                    tracing::error!(
+                        journal = %self.path.display(),
+                        "the journal stops at its last whole line: its disk has been full for longer than the {} bytes of lines it keeps owed; it resumes to there, and every command is refused until a restart with --resume",
+                        self.max_owed
+                    );
+                }
                 Err(e).with_context(|| format!("cannot write the journal {}", self.path.display()))
             }
         }
@@ -304,6 +333,9 @@ impl Journal {
     /// Writes a line of what happened: owed if it cannot be written. Said once when
     /// the journal starts to owe, and once when it has paid (not every frame between).
     fn line(&mut self, line: &Line) {
+        if self.stopped {
+            return;
+        }
         let text = serde_json::to_string(line).expect("journal lines serialise");
         let owing = !self.owed.is_empty();
         match self.write(&text, true) {

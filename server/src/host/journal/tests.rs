@@ -340,3 +340,28 @@ fn a_resume_remembers_the_ids_of_its_last_seconds_as_old_as_they_were() {
     );
     assert_eq!(answered.len(), 2);
 }
+
+/// A disk that stays full: the lines owed are bounded; past the bound the journal stops
+/// at its last whole line, which still resumes, and refuses every command.
+#[test]
+fn a_journal_owes_at_most_its_bound_then_stops_and_refuses_commands() {
+    let mut journal = Journal::full();
+    journal.max_owed = 200;
+    for frame in 1..=5 {
+        journal.stepped(frame, 0.0);
+    }
+    assert!(
+        !journal.stopped && journal.owed.len() > 60,
+        "{}",
+        journal.owed
+    );
+    for frame in 6..=20 {
+        journal.stepped(frame, 0.0);
+    }
+    assert!(journal.stopped && journal.owed.is_empty());
+    let command = Command::World(ricochet_protocol::command::Action::Deselect);
+    let e = journal
+        .before(Intent::Apply(&command), 20, &None, &None)
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("stopped"), "{e:#}");
+}
