@@ -444,3 +444,169 @@ fn resume_needs_its_journal_and_journal_names_the_same_file() {
     assert!(err.contains("name different files"), "{err}");
     assert!(!other.exists(), "nothing was started");
 }
+
+/// A tmpfs mounted for a test, unmounted when dropped (whatever the test did).
+struct Mounted(std::path::PathBuf);
+
+impl Mounted {
+    /// A tmpfs of `size` at `dir`, or why not (not root, no mount).
+    fn tmpfs(dir: &Path, size: &str) -> Result<Mounted, String> {
+        let uid = Process::new("id")
+            .arg("-u")
+            .output()
+            .map_err(|e| e.to_string())?;
+        if String::from_utf8_lossy(&uid.stdout).trim() != "0" {
+            return Err("not root".into());
+        }
+        std::fs::create_dir_all(dir).map_err(|e| e.to_string())?;
+        let out = Process::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={size}"), "tmpfs"])
+            .arg(dir)
+            .output()
+            .map_err(|e| e.to_string())?;
+        if !out.status.success() {
+            return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+        }
+        Ok(Mounted(dir.to_path_buf()))
+    }
+}
+
+impl Drop for Mounted {
+    fn drop(&mut self) {
+        let _ = Process::new("umount").arg("-l").arg(&self.0).status();
+    }
+}
+
+/// Writes `path` until the disk under it is full; the bytes written.
+fn fill(path: &Path) -> u64 {
+    use std::io::Write;
+    let mut file = std::fs::File::create(path).unwrap();
+    let chunk = vec![0u8; 1024];
+    let mut written = 0;
+    loop {
+        match file.write(&chunk) {
+            Ok(0) | Err(_) => return written,
+            Ok(n) => written += n as u64,
+        }
+    }
+}
+
+/// The journal's disk fills while a client sends commands, then frees: a command whose
+/// line cannot be written is refused, and the journal stays one that resumes, after a
+/// kill, to the live world at the last frame it holds, with every command the server
+/// accepted in it (the last accepted one's retry is answered as it was, not applied
+/// again). Needs root to mount a small tmpfs; skipped, saying so, without.
+#[test]
+fn a_journal_whose_disk_filled_and_freed_resumes_to_the_last_command_accepted() {
+    let dir = temp_dir();
+    let disk = dir.path().join("disk");
+    let _mounted = match Mounted::tmpfs(&disk, "256k") {
+        Ok(m) => m,
+        Err(why) => {
+            eprintln!("SKIPPED: a tmpfs cannot be mounted here ({why}); run as root");
+            return;
+        }
+    };
+    let journal = disk.join("world.journal").to_str().unwrap().to_string();
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let (dump_a, dump_b) = (path("a.jsonl"), path("b.jsonl"));
+    let a = Server::start(
+        "emitters.toml",
+        "brimful",
+        &["--journal", &journal, "--dump", &dump_a],
+    );
+    let client = a.client();
+    let mut accepted = Vec::new();
+    let mut refused = 0;
+    let send = |k: usize, accepted: &mut Vec<_>, refused: &mut usize| {
+        let json = format!(
+            r#"{{"do":"spawn_dumb_minion","at":[{},90],"id":"c{k}"}}"#,
+            20 + 7 * (k % 25)
+        );
+        let reply = client.request_raw(json.into_bytes(), TIMEOUT).unwrap();
+        if reply.ok {
+            accepted.push((k, reply));
+        } else {
+            let error = reply.error.clone().unwrap_or_default();
+            assert!(
+                error.contains("journal"),
+                "refused for another reason: {error}"
+            );
+            *refused += 1;
+        }
+        std::thread::sleep(Duration::from_millis(30));
+    };
+    for k in 0..5 {
+        send(k, &mut accepted, &mut refused);
+    }
+    assert_eq!(accepted.len(), 5);
+    // The disk fills: commands are refused (frames keep stepping, their lines owed).
+    let filler = disk.join("filler");
+    let filled = fill(&filler);
+    assert!(filled > 100_000, "{filled} bytes of filler");
+    let mut k = 5;
+    while refused < 5 && k < 200 {
+        send(k, &mut accepted, &mut refused);
+        k += 1;
+    }
+    assert!(refused >= 5, "only {refused} refused with the disk full");
+    // Until the journal stops growing: its last page full too, the frames' lines fail
+    // (owed) as the commands' do.
+    let size = || std::fs::metadata(&journal).unwrap().len();
+    let began = std::time::Instant::now();
+    let mut stable = (size(), std::time::Instant::now());
+    while stable.1.elapsed() < Duration::from_millis(500) {
+        assert!(
+            began.elapsed() < TIMEOUT,
+            "the journal grows on a full disk"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+        if size() != stable.0 {
+            stable = (size(), std::time::Instant::now());
+        }
+    }
+    send(k, &mut accepted, &mut refused);
+    k += 1;
+    // The disk frees: commands are accepted again.
+    std::fs::remove_file(&filler).unwrap();
+    let before = accepted.len();
+    for _ in 0..5 {
+        send(k, &mut accepted, &mut refused);
+        k += 1;
+    }
+    assert_eq!(
+        accepted.len(),
+        before + 5,
+        "accepted once the disk had room"
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    let endpoint = a.endpoint.clone();
+    a.kill();
+    let killed = dump_lines(Path::new(&dump_a));
+
+    let _b = Server::launch_at(
+        &endpoint,
+        "brimful",
+        &["--resume", &journal, "--paused", "--dump", &dump_b],
+    );
+    let resumed = dump_lines(Path::new(&dump_b));
+    let (&last, line) = resumed.iter().next().expect("B dumps its first frame");
+    let (k_last, reply_last) = accepted.last().unwrap();
+    assert!(
+        last >= reply_last.frame,
+        "resumed at frame {last}, before the last accepted command's {}",
+        reply_last.frame
+    );
+    assert_eq!(
+        Some(line),
+        killed.get(&last),
+        "the resumed world is the live one at frame {last}"
+    );
+    // Every accepted command is in it: its retry gets the first answer.
+    let retry = format!(r#"{{"do":"spawn_dumb_minion","at":[0,90],"id":"c{k_last}"}}"#);
+    let again = client.request_raw(retry.into_bytes(), TIMEOUT).unwrap();
+    assert_eq!(
+        &again, reply_last,
+        "the last accepted command, answered again"
+    );
+}

@@ -602,3 +602,35 @@ fn what_a_key_frame_would_carry_is_bounded_before_it_is_accepted() {
         "{stderr}"
     );
 }
+
+/// Names from a scene sent by `load text=` reach `info` replies and viewers' labels: one
+/// holding an escape sequence or a newline is refused, naming the field, and neither the
+/// refusal nor `info` carries a control character.
+#[test]
+fn a_loaded_scene_whose_names_hold_control_characters_is_refused() {
+    let server = Server::start("emitters.toml", "escapes", &[]);
+    let client = server.client();
+    for (group, code) in [("red\u{1b}[2J", "U+001B"), ("a\nb", "U+000A")] {
+        let scene = format!(
+            "[[body]]\nid = \"wall\"\ngroup = {}\nshape = \"rect\"\nsize = [1, 1]\nmass = 0\n",
+            serde_json::to_string(group).unwrap()
+        );
+        let load = serde_json::json!({"do": "load", "text": scene});
+        let reply = client
+            .request_raw(load.to_string().into_bytes(), TIMEOUT)
+            .unwrap();
+        assert!(!reply.ok, "loaded: {reply:?}");
+        let error = reply.error.unwrap_or_default();
+        assert!(
+            error.contains("body[0].group") && error.contains(code),
+            "{error}"
+        );
+        assert!(!error.chars().any(char::is_control), "{error:?}");
+    }
+    let info = client.info(TIMEOUT).unwrap();
+    assert!(
+        info.groups.iter().all(|g| !g.chars().any(char::is_control)),
+        "{:?}",
+        info.groups
+    );
+}

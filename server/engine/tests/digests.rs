@@ -313,6 +313,12 @@ fn every_shipped_scene_steps_on_from_a_checkpoint_to_the_same_bits() {
     );
 }
 
+fn err_under(bytes: &[u8], limits: ricochet_engine::world::Limits) -> String {
+    World::restore(bytes, limits)
+        .expect_err("refused")
+        .to_string()
+}
+
 /// Damaged or foreign bytes are refused, naming why; never a world.
 #[test]
 fn a_damaged_checkpoint_is_refused() {
@@ -344,12 +350,18 @@ fn a_damaged_checkpoint_is_refused() {
     junk.extend_from_slice(&crc32fast::hash(b"junk").to_le_bytes());
     junk.extend_from_slice(b"junk");
     assert!(err(&junk).contains("unreadable"));
-    // The operator's limits replace the saved ones.
+    // The operator's limits replace the saved ones: a world within them restores under
+    // them, one over them is refused, naming the limit.
     let tight = ricochet_engine::world::Limits {
-        bodies: 5,
+        bodies: 21,
         ..limits.clone()
     };
     let restored = World::restore(&bytes, tight.clone()).expect("restores");
     assert_eq!(restored.limits(), &tight);
     assert_eq!(restored.frame(), 10);
+    let under = ricochet_engine::world::Limits {
+        bodies: 5,
+        ..limits.clone()
+    };
+    assert!(err_under(&bytes, under).contains("`bodies`"));
 }

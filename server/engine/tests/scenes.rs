@@ -392,3 +392,28 @@ fn a_syntax_error_reads_on_one_line() {
     assert!(!e.message.contains('\n'), "{e}");
     assert!(e.report(text).contains("[[body]"), "{}", e.report(text));
 }
+
+/// Names reach `info` replies, frames and viewers' labels: an escape sequence or a newline
+/// in one (sent by `load text=`) would be read there as something else than a name.
+#[test]
+fn names_with_control_characters_are_refused_naming_the_field() {
+    let body = |id: &str, group: &str| {
+        format!("[[body]]\nid = \"{id}\"\ngroup = \"{group}\"\nshape = \"rect\"\nsize = [1, 1]\n")
+    };
+    refused(&body("a", "red\\u001b[2J"), 3, "body[0].group", "U+001B");
+    refused(&body("a\\nb", "boxes"), 2, "body[0].id", "U+000A");
+    refused(
+        "[[generate]]\nkind = \"row\"\nid = \"row\"\ngroup = \"x\\ty\"\nshape = \"rect\"\nsize = [1, 1]\ncount = 2\n",
+        4,
+        "generate[0].group",
+        "U+0009",
+    );
+    refused(
+        &(body("a", "boxes") + "[[interact]]\na = \"boxes\"\nb = \"\\u0007\"\n"),
+        8,
+        "interact[0].b",
+        "U+0007",
+    );
+    // Any other character is a name: accents, symbols, emoji.
+    assert!(parse(&body("é/1", "boîtes ✓")).is_ok());
+}

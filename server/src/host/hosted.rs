@@ -98,8 +98,9 @@ pub struct Stepping {
 /// What commands cost here, and the server's counts.
 pub struct Accounts {
     pub health: Health,
-    /// How much longer than their model commands took here (kept across worlds: it is
-    /// the machine's).
+    /// How much longer than their model commands took here, learnt on this world:
+    /// forgotten when the world is replaced (a `load`, a `reset`), so what a heavy world
+    /// taught does not price an honest client's commands on the next one.
     calibration: price::Calibration,
 }
 
@@ -171,6 +172,7 @@ impl Hosted {
 
     fn replace_world(&mut self, world: World) {
         self.world = world;
+        self.accounts.calibration = price::Calibration::default();
         self.wire.generation += 1;
         self.wire.streams.force_key_frame();
         self.wire.statics_revision = None;
@@ -590,6 +592,35 @@ mass = 1
             .unwrap_err();
         assert!(e.starts_with("<loaded scene>:6: interact[0].b: "), "{e}");
         assert!(!e.contains('\n') && !e.contains("did you mean"), "{e}");
+    }
+
+    /// The attack of round 3: a heavy world teaches a kind a large scale (a `reset` that
+    /// took a second); the shipped scene loaded back, an honest `reset` must be priced as
+    /// this world's, not refused as over the burst.
+    #[test]
+    fn what_a_world_taught_the_prices_is_forgotten_on_load_and_reset() {
+        let mut h = hosted();
+        let reset = Command::Server(ServerCommand::Reset { paused: false });
+        let model = h.price(&reset).time();
+        assert!(model < Duration::from_millis(1), "{model:?}");
+        // A second's run: scaled to the most a kind may be, a thousand times the model.
+        let taught = |h: &mut Hosted| {
+            let price = h.price(&reset);
+            h.learn(&price, Duration::from_secs(1));
+            assert!(h.price(&reset).time() >= model * 999);
+        };
+        taught(&mut h);
+        let load = Command::Server(ServerCommand::Load {
+            path: None,
+            text: Some(SCENE.into()),
+        });
+        assert!(h.handle(&load).reply.ok);
+        assert_eq!(h.price(&reset).time(), model, "forgotten on load");
+        taught(&mut h);
+        assert!(h.handle(&reset).reply.ok);
+        assert_eq!(h.price(&reset).time(), model, "forgotten on reset");
+        // Within a world, it is learnt.
+        taught(&mut h);
     }
 
     #[test]

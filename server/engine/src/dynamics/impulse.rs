@@ -243,6 +243,25 @@ pub struct SolverBuffers {
     pub times: Option<SolveTimes>,
 }
 
+impl SolverBuffers {
+    /// Checks buffers read back from a checkpoint against the world's `movers`: blocks
+    /// kept for them (not cut again at the next frame) name blocks that exist. Names what
+    /// is wrong.
+    pub fn check(&self, movers: &[u32]) -> Result<(), (String, String)> {
+        if self.blocks_for.as_slice() != movers || self.block_of.len() != movers.len() {
+            return Ok(());
+        }
+        let blocks = blocks::block_count(movers.len());
+        match self.block_of.iter().position(|&b| b as usize >= blocks) {
+            Some(k) => Err((
+                format!("solver_buffers.block_of[{k}]"),
+                format!("block {} of {blocks}", self.block_of[k]),
+            )),
+            None => Ok(()),
+        }
+    }
+}
+
 /// The wall-clock time of each stage of one frame of the impulse solver, summed over its
 /// sub-steps: where a step's rigid stage goes (a world's profile, as Box2D's `b2Profile`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -216,6 +216,53 @@ impl PairSet {
         self.merge_found(pairs);
     }
 
+    /// Checks a set read back from a checkpoint against the world's `bodies` and its
+    /// `groups`: every index in range, every box finite, every place one its grid could
+    /// have given. A set the next update rebuilds anyway (another revision, another body
+    /// count) is not read and passes. Names the field that is wrong.
+    pub fn check(&self, bodies: &[Body], groups: usize) -> Result<(), (String, String)> {
+        let bad = |field: &str, reason: String| Err((format!("pair_set.{field}"), reason));
+        let n = bodies.len();
+        if self.revision.is_none() || self.fat.len() != n {
+            return Ok(());
+        }
+        if self.groups > groups || self.resolves.len() != self.groups * self.groups {
+            return bad(
+                "resolves",
+                format!(
+                    "{} entries for {} groups (the world has {groups})",
+                    self.resolves.len(),
+                    self.groups
+                ),
+            );
+        }
+        self.grid
+            .check(n, MAX_CELLS)
+            .or_else(|reason| bad("grid", reason))?;
+        for (i, f) in self.fat.iter().enumerate() {
+            let Some(place) = f.place else { continue };
+            if !(f.min.is_finite() && f.max.is_finite() && self.grid.holds(place)) {
+                return bad(&format!("fat[{i}]"), "a box or cells out of range".into());
+            }
+            if bodies[i].group as usize >= self.groups {
+                return bad(
+                    &format!("fat[{i}]"),
+                    format!(
+                        "body {i} of group {} is in a grid of {} groups",
+                        bodies[i].group, self.groups
+                    ),
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The first body with a place in the grid (for tests).
+    #[cfg(test)]
+    pub(crate) fn first_placed(&self) -> Option<usize> {
+        self.fat.iter().position(|f| f.place.is_some())
+    }
+
     /// Makes the next update rebuild the grid: `Contacts` were filled by another broad
     /// phase.
     pub fn forget(&mut self) {

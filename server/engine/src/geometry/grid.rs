@@ -105,6 +105,53 @@ impl Grid {
         }
     }
 
+    /// Checks a grid read back from a checkpoint: a finite cell size, at most `max_cells`
+    /// cells a box (a crafted bound would make one visit run for ever), every slot below
+    /// `slots`. Names what is wrong.
+    pub fn check(&self, slots: usize, max_cells: i64) -> Result<(), String> {
+        if !(self.cell.is_finite() && self.cell >= 1e-9) {
+            return Err(format!(
+                "cell size {} is not a finite number of at least 1e-9",
+                self.cell
+            ));
+        }
+        if !(1..=max_cells).contains(&self.max_cells) {
+            return Err(format!(
+                "{} cells a box is not 1 to {max_cells}",
+                self.max_cells
+            ));
+        }
+        let slot = self
+            .cells
+            .values()
+            .flatten()
+            .chain(&self.oversized)
+            .find(|&&s| s as usize >= slots);
+        if let Some(s) = slot {
+            return Err(format!("slot {s} is out of range ({slots} bodies)"));
+        }
+        Ok(())
+    }
+
+    /// Whether `place` is a range of cells this grid could have given (at most its
+    /// `max_cells`, corners in order).
+    pub fn holds(&self, place: Cells) -> bool {
+        match place {
+            Cells::Oversized => true,
+            Cells::Range(x0, y0, x1, y1) => {
+                let side = |lo: i64, hi: i64| {
+                    hi.checked_sub(lo)
+                        .and_then(|d| d.checked_add(1))
+                        .filter(|&n| n >= 1)
+                };
+                side(x0, x1)
+                    .zip(side(y0, y1))
+                    .and_then(|(w, h)| w.checked_mul(h))
+                    .is_some_and(|n| n <= self.max_cells)
+            }
+        }
+    }
+
     /// Calls `f` with every slot binned in the cells of `range`, then every slot kept
     /// aside; a slot in several of the cells comes once per cell.
     pub fn visit(&self, range: (i64, i64, i64, i64), mut f: impl FnMut(u32)) {

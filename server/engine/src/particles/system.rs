@@ -154,6 +154,51 @@ impl Particles {
         self.next_id = id;
     }
 
+    /// Checks particles read back from a checkpoint: one entry per particle in every
+    /// array, every number finite. Names the first array that is wrong.
+    pub fn check(&self) -> Result<(), (String, String)> {
+        let n = self.x.len();
+        let scalars: [(&str, &[f32]); 11] = [
+            ("x", &self.x),
+            ("y", &self.y),
+            ("vx", &self.vx),
+            ("vy", &self.vy),
+            ("life", &self.life),
+            ("size", &self.size),
+            ("ax", &self.ax),
+            ("ay", &self.ay),
+            ("drag", &self.drag),
+            ("size_delta", &self.size_delta),
+            ("initial_life", &self.initial_life),
+        ];
+        let colours: [(&str, &[[f32; 4]]); 2] =
+            [("color", &self.color), ("color_delta", &self.color_delta)];
+        let bad = |name: &str, reason: String| Err((format!("particles.{name}"), reason));
+        if self.id.len() != n {
+            return bad("id", format!("{} ids for {n} particles", self.id.len()));
+        }
+        for (name, values) in scalars {
+            if values.len() != n {
+                return bad(name, format!("{} values for {n} particles", values.len()));
+            }
+            if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+                return bad(
+                    &format!("{name}[{k}]"),
+                    format!("{} is not finite", values[k]),
+                );
+            }
+        }
+        for (name, values) in colours {
+            if values.len() != n {
+                return bad(name, format!("{} values for {n} particles", values.len()));
+            }
+            if let Some(k) = values.iter().position(|c| !c.iter().all(|v| v.is_finite())) {
+                return bad(&format!("{name}[{k}]"), "not finite".into());
+            }
+        }
+        Ok(())
+    }
+
     pub fn len(&self) -> usize {
         self.x.len()
     }

@@ -122,7 +122,8 @@ pub fn parse_with(
     let mut world = World::with_limits(config, limits);
 
     for (name, preset) in &scene.preset {
-        let table = format!("preset.{name}");
+        let table = format!("preset.{}", name.escape_debug());
+        plain_name(name).map_err(|m| ctx.field_error(&table, preset.span(), "name", &m))?;
         if let Some(field) = preset.get_ref().non_finite_field() {
             return Err(ctx.field_error(&table, preset.span(), field, "is not finite"));
         }
@@ -136,6 +137,9 @@ pub fn parse_with(
         let span = raw.span();
         let raw = raw.get_ref();
         let id = raw.id.clone().unwrap_or_else(|| format!("body/{i}"));
+        for (field, name) in [("id", &id), ("group", &raw.group)] {
+            plain_name(name).map_err(|m| ctx.field_error(&table, span.clone(), field, &m))?;
+        }
         let shape = shape_of(raw.shape, raw.size, raw.radius)
             .map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
         let def = BodyDef {
@@ -157,6 +161,9 @@ pub fn parse_with(
         let table = format!("generate[{i}]");
         let span = raw.span();
         let g = raw.get_ref();
+        for (field, name) in [("id", &g.id), ("group", &g.group)] {
+            plain_name(name).map_err(|m| ctx.field_error(&table, span.clone(), field, &m))?;
+        }
         let shape = shape_of(g.shape, g.size, g.radius)
             .map_err(|(f, m)| ctx.field_error(&table, span.clone(), f, &m))?;
         let positions = generate(g, shape, world.room_for_bodies())
@@ -208,7 +215,10 @@ pub fn parse_with(
                 &table,
                 raw.span(),
                 "preset",
-                &format!("unknown preset `{}` (known: {known})", e.preset),
+                &format!(
+                    "unknown preset `{}` (known: {known})",
+                    crate::world::short(&e.preset.escape_debug().to_string(), 64)
+                ),
             ));
         }
         world
@@ -238,6 +248,10 @@ pub fn parse_with(
                 ))
             }
         };
+        plain_name(&name).map_err(|m| ctx.field_error(&table, span.clone(), "name", &m))?;
+        if let Some(group) = fields.get("group").and_then(toml::Value::as_str) {
+            plain_name(group).map_err(|m| ctx.field_error(&table, span.clone(), "group", &m))?;
+        }
         let spec: crate::action::BodySpec =
             toml::Value::Table(fields)
                 .try_into()
@@ -262,6 +276,8 @@ pub fn parse_with(
     for (i, raw) in scene.interact.iter().enumerate() {
         let it = raw.get_ref();
         for (side, name) in [("a", &it.a), ("b", &it.b)] {
+            plain_name(name.get_ref())
+                .map_err(|m| ctx.field_error(&format!("interact[{i}]"), raw.span(), side, &m))?;
             check_group(&ctx, format!("interact[{i}].{side}"), name, &groups)?;
         }
         world
@@ -427,5 +443,18 @@ fn behavior_of(kind: Option<BehaviorKind>, vel: DVec2) -> Behavior {
             dir: if vel.x < 0.0 { -1.0 } else { 1.0 },
         },
         Some(BehaviorKind::DumbMinion) => Behavior::DumbMinion,
+    }
+}
+
+/// Refuses a name (a body's id, a group's, a preset's) holding a control character: names
+/// reach `info` replies, frames, dumps and viewers' labels and terminals, where an escape
+/// sequence or a newline would be read as something else than a name.
+fn plain_name(name: &str) -> Result<(), String> {
+    match name.chars().find(|c| c.is_control()) {
+        Some(c) => Err(format!(
+            "holds the control character U+{:04X}: a name may not",
+            c as u32
+        )),
+        None => Ok(()),
     }
 }

@@ -36,6 +36,7 @@ mod limits;
 mod profile;
 mod step;
 mod store;
+mod validate;
 
 pub use checkpoint::{CheckpointError, CHECKPOINT_VERSION};
 pub use limits::{short, LimitError, Limits, REAL_TIME_STEP_WORK};

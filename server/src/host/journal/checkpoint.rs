@@ -15,7 +15,7 @@
 //! [`World::save`] writes it).
 
 use std::fs::{File, OpenOptions};
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -68,7 +68,7 @@ pub struct CheckpointRef {
 /// What a checkpoint holds.
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct State {
+pub(super) struct State {
     scene_name: PathBuf,
     scene_text: String,
     paused: bool,
@@ -77,7 +77,7 @@ struct State {
     accuracy: Option<String>,
     answers: Vec<Remembered>,
     #[serde(with = "serde_bytes")]
-    world: Vec<u8>,
+    pub(super) world: Vec<u8>,
     /// The host's saves, history and frame hashes: a resumed server restores and rewinds
     /// as the live one did.
     #[serde(default)]
@@ -99,9 +99,12 @@ fn write_whole(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = PathBuf::from(tmp);
     let mut file =
         File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-    file.write_all(bytes)
-        .and_then(|()| file.sync_all())
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    if let Err(e) = file.write_all(bytes).and_then(|()| file.sync_all()) {
+        // A full disk: what was written in part goes, not to hold the room it took.
+        drop(file);
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e).with_context(|| format!("cannot write {}", tmp.display()));
+    }
     std::fs::rename(&tmp, path)
         .with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
 }
@@ -118,9 +121,11 @@ pub(super) struct Pending {
 
 impl Journal {
     /// Whether the journal has grown past its bound (in bytes or in replay time) and no
-    /// checkpoint is being written.
+    /// checkpoint is being written. Never while lines are owed: they happened before the
+    /// checkpoint's frame, and belong to the journal it would replace.
     pub fn checkpoint_due(&self) -> bool {
         self.pending.is_none()
+            && self.owed.is_empty()
             && (self.since.bytes >= self.policy.journal_bytes
                 || self.since.step_ms >= self.policy.replay_ms)
     }
@@ -285,7 +290,9 @@ impl Journal {
             .append(true)
             .open(&self.path)
             .with_context(|| format!("cannot append to the journal {}", self.path.display()))?;
-        self.out = BufWriter::new(appended);
+        self.out = appended;
+        self.len = text.len() as u64;
+        self.cut = false;
         if let Some(old) = self.checkpoint.replace(file.clone()) {
             if old != file {
                 let _ = std::fs::remove_file(dir.join(old));
@@ -341,6 +348,13 @@ pub fn remove_strays(journal: &Path, keep: Option<&str>) {
     }
 }
 
+/// The largest checkpoint a world within `limits` can make, about: a generous size per
+/// body (its solver data, id, contacts and grid box) and per particle, and room for the
+/// scene's text and the answers a host remembers. A checkpoint is read at most this far.
+pub fn max_bytes(limits: &ricochet_engine::world::Limits) -> u64 {
+    (64 << 20) + u64::from(limits.bodies) * 4096 + u64::from(limits.particles) * 256
+}
+
 /// Reads the checkpoint a journal at `journal` names, checked against its line, and
 /// restores the host it holds under `opts` (its limits, not the checkpoint's).
 pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) -> Result<Restored> {
@@ -360,8 +374,11 @@ pub fn restore(journal: &Path, reference: &CheckpointRef, opts: &HostOptions) ->
     }
     let dir = journal.parent().map(Path::to_path_buf).unwrap_or_default();
     let path = dir.join(name);
-    let bytes = std::fs::read(&path)
-        .with_context(|| format!("cannot read the checkpoint {}", path.display()))?;
+    let bytes = super::files::read_bounded(
+        &path,
+        "checkpoint",
+        reference.bytes.min(max_bytes(&opts.limits)),
+    )?;
     if bytes.len() as u64 != reference.bytes
         || format!("{:08x}", crc32fast::hash(&bytes)) != reference.crc
     {
@@ -416,6 +433,9 @@ mod tests {
     use super::super::super::inbox::Sender;
     use super::super::{resume, Intent};
     use super::*;
+
+    /// A change made to a checkpoint's CBOR, as an attacker would.
+    type Change = Box<dyn FnOnce(&mut ciborium::Value)>;
 
     fn options(policy: Checkpoints) -> HostOptions {
         HostOptions {
@@ -702,5 +722,181 @@ mod tests {
         std::fs::remove_file(&file).unwrap();
         let e = refusal(&opts);
         assert!(e.contains("cannot read the checkpoint"), "{e}");
+    }
+
+    /// A journal of the pyramid that starts from a checkpoint, and the checkpoint's
+    /// line.
+    fn checkpointed(dir: &Path) -> (PathBuf, CheckpointRef, HostOptions) {
+        let path = dir.join("world.journal");
+        let opts = options(Checkpoints {
+            journal_bytes: 4096,
+            replay_ms: f64::INFINITY,
+        });
+        run(&path, &opts, 300);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let second = text.lines().nth(1).unwrap();
+        match serde_json::from_str::<Line>(super::super::text_of(second).unwrap()) {
+            Ok(Line::Checkpoint { checkpoint }) => (path, checkpoint, opts),
+            _ => panic!("no checkpoint line: {second}"),
+        }
+    }
+
+    /// Makes the journal at `path` name `reference` (its line signed again, as an
+    /// attacker who can write the journal would).
+    fn renamed(path: &Path, reference: &CheckpointRef) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let line = serde_json::to_string(&Line::Checkpoint {
+            checkpoint: reference.clone(),
+        })
+        .unwrap();
+        let changed: String = text
+            .lines()
+            .enumerate()
+            .map(|(k, l)| if k == 1 { signed(&line) } else { l.to_string() } + "\n")
+            .collect();
+        std::fs::write(path, changed).unwrap();
+    }
+
+    /// The refusal of a resume, run on a thread of its own: a resume that has not
+    /// answered in 10 s hangs, and fails the test.
+    fn refused_in_time(path: &Path, opts: &HostOptions) -> String {
+        let (path, opts) = (path.to_path_buf(), opts.clone());
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(resume(&path, &opts).err().map(|e| format!("{e:#}")));
+        });
+        rx.recv_timeout(std::time::Duration::from_secs(10))
+            .expect("the resume answers, refused or not")
+            .expect("refused")
+    }
+
+    /// The checkpoint's world rewritten by `change` (as CBOR), signed again by the
+    /// engine's CRC, the file's size and CRC written again into the journal: what passes
+    /// every checksum.
+    fn crafted(path: &Path, reference: &CheckpointRef, change: impl FnOnce(&mut ciborium::Value)) {
+        let file = path.parent().unwrap().join(&reference.file);
+        let bytes = std::fs::read(&file).unwrap();
+        let mut state: State = ciborium::from_reader(&bytes[4..]).unwrap();
+        let mut world: ciborium::Value = ciborium::from_reader(&state.world[8..]).unwrap();
+        change(&mut world);
+        let mut body = Vec::new();
+        ciborium::into_writer(&world, &mut body).unwrap();
+        let mut saved = state.world[..4].to_vec();
+        saved.extend_from_slice(&crc32fast::hash(&body).to_le_bytes());
+        saved.extend_from_slice(&body);
+        state.world = saved;
+        let mut out = MAGIC.to_vec();
+        out.push(FILE_VERSION);
+        ciborium::into_writer(&state, &mut out).unwrap();
+        std::fs::write(&file, &out).unwrap();
+        renamed(
+            path,
+            &CheckpointRef {
+                bytes: out.len() as u64,
+                crc: format!("{:08x}", crc32fast::hash(&out)),
+                ..reference.clone()
+            },
+        );
+    }
+
+    /// The entry `key` of a CBOR map.
+    fn entry<'a>(value: &'a mut ciborium::Value, key: &str) -> &'a mut ciborium::Value {
+        value
+            .as_map_mut()
+            .unwrap()
+            .iter_mut()
+            .find(|(k, _)| k.as_text() == Some(key))
+            .map(|(_, v)| v)
+            .unwrap_or_else(|| panic!("no `{key}`"))
+    }
+
+    #[test]
+    fn a_checkpoint_that_is_a_device_or_a_fifo_is_refused_without_reading_or_waiting() {
+        let dir = tempfile::tempdir().unwrap();
+        let (path, reference, opts) = checkpointed(dir.path());
+        let file = dir.path().join(&reference.file);
+        // A link to /dev/zero was read until 1 GiB.
+        std::fs::remove_file(&file).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", &file).unwrap();
+        let e = refused_in_time(&path, &opts);
+        assert!(e.contains("a device") && e.contains(&reference.file), "{e}");
+        // A FIFO with no writer hung the resume.
+        std::fs::remove_file(&file).unwrap();
+        let c = std::ffi::CString::new(file.to_str().unwrap()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let e = refused_in_time(&path, &opts);
+        assert!(e.contains("a FIFO") && e.contains(&reference.file), "{e}");
+    }
+
+    #[test]
+    fn a_crafted_checkpoint_is_refused_naming_its_file_and_field() {
+        use ciborium::Value;
+        let dir = tempfile::tempdir().unwrap();
+        let (path, reference, opts) = checkpointed(dir.path());
+        let file = dir.path().join(&reference.file);
+        let good = std::fs::read(&file).unwrap();
+        let journal = std::fs::read(&path).unwrap();
+        let cases: Vec<(&str, Change)> = vec![
+            // Panicked in Duration arithmetic.
+            (
+                "`config`",
+                Box::new(|w| *entry(entry(w, "config"), "dt") = Value::Float(1e300)),
+            ),
+            // Panicked in the integrator.
+            (
+                "`movers`",
+                Box::new(|w| {
+                    entry(w, "movers")
+                        .as_array_mut()
+                        .unwrap()
+                        .push(Value::Integer(4_000_000.into()))
+                }),
+            ),
+            // Served, with non-finite numbers in every frame.
+            (
+                "`bodies[1].pos`",
+                Box::new(|w| {
+                    let body = &mut entry(w, "bodies").as_array_mut().unwrap()[1];
+                    entry(body, "pos").as_array_mut().unwrap()[0] = Value::Float(f64::NAN)
+                }),
+            ),
+        ];
+        for (field, change) in cases {
+            std::fs::write(&file, &good).unwrap();
+            std::fs::write(&path, &journal).unwrap();
+            crafted(&path, &reference, change);
+            let e = refused_in_time(&path, &opts);
+            assert!(
+                e.contains(field) && e.contains(&reference.file),
+                "{field}: {e}"
+            );
+        }
+        // 56 bodies under --limit bodies=10 (the journal's header lowered to it and
+        // signed again): served, before.
+        std::fs::write(&file, &good).unwrap();
+        let lowered: String = String::from_utf8(journal)
+            .unwrap()
+            .lines()
+            .enumerate()
+            .map(|(k, l)| {
+                if k == 0 {
+                    let text = super::super::text_of(l).unwrap();
+                    signed(&text.replacen("bodies = 100000", "bodies = 10", 1))
+                } else {
+                    l.to_string()
+                }
+            } + "\n")
+            .collect();
+        assert!(
+            lowered.contains("bodies = 10\\n"),
+            "the header's limits as TOML"
+        );
+        std::fs::write(&path, lowered).unwrap();
+        let strict = HostOptions {
+            limits: opts.limits.with(&["bodies=10".into()]).unwrap(),
+            ..opts.clone()
+        };
+        let e = refused_in_time(&path, &strict);
+        assert!(e.contains("`bodies`") && e.contains("limit of 10"), "{e}");
     }
 }

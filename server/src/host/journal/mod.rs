@@ -30,17 +30,25 @@
 //! of resuming silently into another world (JSON text never holds a raw tab). Journals of
 //! version 1 have no checksums and still resume.
 //!
-//! Each line is flushed to the operating system as it is written: a killed process loses
+//! Each line is handed to the operating system as it is written: a killed process loses
 //! nothing written (a machine that loses power may lose what the OS had not yet stored).
+//!
+//! A write that fails (a full disk) leaves the journal whole: what it wrote in part is
+//! cut off again, so the file ends with the last whole line. A command's line that cannot
+//! be written is dropped and the command refused; a line of what happened anyway (a
+//! frame stepped, a reply) is owed, kept in memory and written before any later line once
+//! the disk has room, so the journal never skips a frame (at most [`MAX_OWED_BYTES`]: past
+//! them it stops at its last whole line, and refuses commands). A resume drops a torn last line
+//! (no newline, or a checksum that does not match, at the end of the file), saying so.
 //! A resume replays the lines in order: the same scene, commands and steps give the same
 //! world, bit for bit, since the engine is deterministic; the resumed server then appends
 //! to the same journal.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use ricochet_protocol::command::{Command, Reply};
 use serde::{Deserialize, Serialize};
 
@@ -51,6 +59,12 @@ use super::HostOptions;
 /// The journal's format version: 4 may start from a checkpoint; 3 writes a command before
 /// it runs, 2 once it ran; all have a checksum on every line, 1 none.
 pub const VERSION: u32 = 4;
+
+/// The most bytes of lines a journal owes while its disk is full: about four hours of
+/// frames at 60 Hz. Past it the journal stops at its last whole line (what it holds
+/// resumes, every accepted command included) and every command is refused: the memory a
+/// full disk takes is bounded.
+pub const MAX_OWED_BYTES: usize = 16 << 20;
 
 /// A journal line as written: its text, a tab and the text's CRC-32.
 fn signed(text: &str) -> String {
@@ -171,8 +185,20 @@ pub enum Intent<'a> {
 
 /// An open journal, appended to.
 pub struct Journal {
-    out: BufWriter<File>,
+    out: File,
     path: PathBuf,
+    /// Bytes of the whole lines on disk: where the file is cut back to when a write
+    /// fails part way.
+    len: u64,
+    /// Whether a failed write may have left bytes after `len` that are still to be cut.
+    cut: bool,
+    /// Lines of what happened (frames stepped, replies) whose write failed, in order:
+    /// written before any later line.
+    owed: String,
+    /// The most bytes owed: past it the journal stops (see [`Journal::write`]).
+    max_owed: usize,
+    /// Stopped at its last whole line: every command is refused until a resume.
+    stopped: bool,
     /// When to take a checkpoint, and how far the journal has come since the last.
     policy: Checkpoints,
     since: Since,
@@ -195,23 +221,32 @@ impl Journal {
     pub fn create(path: &Path, world: &str, host: &Hosted, opts: &HostOptions) -> Result<Journal> {
         let file = File::create(path)
             .with_context(|| format!("cannot create the journal {}", path.display()))?;
-        let mut journal = Journal::appending(file, path, opts.checkpoints, None);
+        let mut journal = Journal::appending(file, path, 0, opts.checkpoints, None);
         let header = Header::of(world, host, opts);
-        journal.write(&serde_json::to_string(&header).expect("headers serialise"))?;
+        journal.write(
+            &serde_json::to_string(&header).expect("headers serialise"),
+            false,
+        )?;
         Ok(journal)
     }
 
-    /// A journal appending to `file` (at `path`), starting from `checkpoint` if it names
-    /// one.
+    /// A journal appending to `file` (at `path`, `len` bytes of whole lines), starting
+    /// from `checkpoint` if it names one.
     fn appending(
         file: File,
         path: &Path,
+        len: u64,
         policy: Checkpoints,
         checkpoint: Option<String>,
     ) -> Journal {
         Journal {
-            out: BufWriter::new(file),
+            out: file,
             path: path.to_path_buf(),
+            len,
+            cut: false,
+            owed: String::new(),
+            max_owed: MAX_OWED_BYTES,
+            stopped: false,
             policy,
             since: Since::default(),
             checkpoint,
@@ -219,21 +254,95 @@ impl Journal {
         }
     }
 
-    fn write(&mut self, line: &str) -> Result<()> {
-        let line = signed(line);
-        self.since.bytes += line.len() as u64 + 1;
-        if let Some(pending) = self.pending.as_mut() {
-            pending.lines.push(line.clone());
+    /// Writes `line` after any owed ones. On a failure nothing of it stays on disk; the
+    /// line is then owed if `owed` (what happened anyway), or dropped.
+    fn write(&mut self, line: &str, owed: bool) -> Result<()> {
+        if self.stopped {
+            bail!(
+                "the journal {} stopped at its last whole line while its disk was full (more than {} bytes of lines owed); resume it (--resume) to go on",
+                self.path.display(),
+                self.max_owed
+            );
         }
-        writeln!(self.out, "{line}")
-            .and_then(|()| self.out.flush())
-            .with_context(|| format!("cannot write the journal {}", self.path.display()))
+        let line = signed(line);
+        let mut text = std::mem::take(&mut self.owed);
+        let before = text.len();
+        text.push_str(&line);
+        text.push('\n');
+        match self.put(&text) {
+            Ok(()) => {
+                if before > 0 {
+                    tracing::warn!(
+                        journal = %self.path.display(),
+                        bytes = before,
+                        "the journal can be written again: the lines owed are written"
+                    );
+                }
+                self.since.bytes += text.len() as u64;
+                if let Some(pending) = self.pending.as_mut() {
+                    pending.lines.extend(text.lines().map(str::to_string));
+                }
+                Ok(())
+            }
+            Err(e) => {
+                if !owed {
+                    text.truncate(before);
+                }
+                self.owed = text;
+                if self.owed.len() > self.max_owed {
+                    self.stopped = true;
+                    self.owed = String::new();
+                    tracing::error!(
+                        journal = %self.path.display(),
+                        "the journal stops at its last whole line: its disk has been full for longer than the {} bytes of lines it keeps owed; it resumes to there, and every command is refused until a restart with --resume",
+                        self.max_owed
+                    );
+                }
+                Err(e).with_context(|| format!("cannot write the journal {}", self.path.display()))
+            }
+        }
     }
 
+    /// Appends `text` (whole lines) to the file, or nothing: what a failed write left is
+    /// cut off, now or before the next write.
+    fn put(&mut self, text: &str) -> std::io::Result<()> {
+        if self.cut {
+            self.out.set_len(self.len)?;
+            self.out.seek(SeekFrom::Start(self.len))?;
+            self.cut = false;
+        }
+        match self.out.write_all(text.as_bytes()) {
+            Ok(()) => {
+                self.len += text.len() as u64;
+                Ok(())
+            }
+            Err(e) => {
+                self.cut = true;
+                let cut = self
+                    .out
+                    .set_len(self.len)
+                    .and_then(|()| self.out.seek(SeekFrom::Start(self.len)));
+                if cut.is_ok() {
+                    self.cut = false;
+                }
+                Err(e)
+            }
+        }
+    }
+
+    /// Writes a line of what happened: owed if it cannot be written. Said once when
+    /// the journal starts to owe, and once when it has paid (not every frame between).
     fn line(&mut self, line: &Line) {
+        if self.stopped {
+            return;
+        }
         let text = serde_json::to_string(line).expect("journal lines serialise");
-        if let Err(e) = self.write(&text) {
-            tracing::error!("{e:#}");
+        let owing = !self.owed.is_empty();
+        match self.write(&text, true) {
+            Err(e) if !owing => tracing::error!(
+                "{e:#}: the lines of what happens are kept in memory until it can, and commands refused"
+            ),
+            Err(_) | Ok(()) => {}
         }
     }
 
@@ -270,7 +379,10 @@ impl Journal {
                 id,
             },
         };
-        self.write(&serde_json::to_string(&line).expect("journal lines serialise"))
+        self.write(
+            &serde_json::to_string(&line).expect("journal lines serialise"),
+            false,
+        )
     }
 
     /// A journal every write to fails, as on a full disk: `/dev/full`.
@@ -281,7 +393,7 @@ impl Journal {
             .write(true)
             .open(&path)
             .expect("/dev/full");
-        Journal::appending(file, &path, Checkpoints::default(), None)
+        Journal::appending(file, &path, 0, Checkpoints::default(), None)
     }
 
     /// The reply of the command [`Journal::before`] wrote last, if it had an id.
@@ -304,9 +416,12 @@ impl Journal {
 }
 
 mod checkpoint;
+mod files;
 mod resume;
 pub use checkpoint::{remove_strays, CheckpointRef, Checkpoints};
 pub use resume::{resume, Resumed};
 
+#[cfg(test)]
+mod fuzz;
 #[cfg(test)]
 mod tests;

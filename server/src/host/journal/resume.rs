@@ -16,6 +16,11 @@ use super::super::inbox::Sender;
 use super::super::HostOptions;
 use super::{checkpoint, unsigned, Header, Journal, Line, VERSION};
 
+/// The longest journal line read: a header or a `load` with a scene file of the largest
+/// size read ([`crate::scenes::MAX_SCENE_FILE_BYTES`]), every byte of it escaped in JSON
+/// (six bytes at most), and room for the rest of the line.
+pub const MAX_LINE_BYTES: u64 = 6 * crate::scenes::MAX_SCENE_FILE_BYTES + (64 << 10);
+
 /// A world rebuilt from its journal.
 pub struct Resumed {
     pub world: String,
@@ -56,40 +61,82 @@ impl<R: BufRead> Lines<R> {
     }
 
     /// The next line, without its newline, and its number; `None` at the end, and for a
-    /// last line the kill cut short (no newline: it was never flushed whole, so nothing it
-    /// held was answered).
+    /// last line a kill or a full disk cut short: no newline, or a checksum that does not
+    /// match, at the end of the file (it was never written whole, so nothing it held was
+    /// answered; it is dropped, and cut off before the journal is appended to).
     ///
     /// The bytes are read before they are taken as text, so a line torn inside a
-    /// character is torn, like any other; a whole line that is not UTF-8 is refused,
-    /// naming it.
+    /// character is torn, like any other; a whole line that is not UTF-8, or whose
+    /// checksum does not match, with more after it is refused, naming it. A line is read
+    /// up to [`MAX_LINE_BYTES`]: a longer one is refused, not read on.
     fn next(&mut self, path: &Path) -> Result<Option<(usize, &str)>> {
         self.bytes.clear();
-        let got = self
-            .reader
+        let got = (&mut self.reader)
+            .take(MAX_LINE_BYTES + 1)
             .read_until(b'\n', &mut self.bytes)
             .with_context(|| format!("cannot read the journal {}", path.display()))?;
-        if got == 0 || self.bytes.last() != Some(&b'\n') {
+        let n = self.n + 1;
+        if got as u64 > MAX_LINE_BYTES {
+            bail!(
+                "journal {} line {n}: longer than {MAX_LINE_BYTES} bytes (no journal line is)",
+                path.display()
+            );
+        }
+        if got == 0 {
             return Ok(None);
         }
-        self.n += 1;
-        self.whole += got as u64;
+        if self.bytes.last() != Some(&b'\n') {
+            tracing::warn!(
+                journal = %path.display(),
+                line = n,
+                bytes = got,
+                "the journal's last line was cut short (no newline): dropped"
+            );
+            return Ok(None);
+        }
         self.bytes.pop();
-        let line = std::str::from_utf8(&self.bytes)
-            .map_err(|_| anyhow!("journal {} line {}: not UTF-8 text", path.display(), self.n))?;
+        let at_end = self
+            .reader
+            .fill_buf()
+            .with_context(|| format!("cannot read the journal {}", path.display()))?
+            .is_empty();
+        let torn = |why: &str| {
+            tracing::warn!(
+                journal = %path.display(),
+                line = n,
+                bytes = got,
+                "the journal's last line {why}: taken as cut short by a kill or a full disk, dropped"
+            );
+        };
+        let Ok(line) = std::str::from_utf8(&self.bytes) else {
+            if at_end {
+                torn("is not UTF-8");
+                return Ok(None);
+            }
+            bail!("journal {} line {n}: not UTF-8 text", path.display());
+        };
         // A journal of version 1 has lines without checksums, and those a resumed server
         // appended with them.
-        self.had_sum = line.contains('\t');
-        if !self.signed && !self.had_sum {
-            return Ok(Some((self.n, line)));
-        }
-        let text = unsigned(line).ok_or_else(|| {
-            anyhow!(
-                "journal {} line {}: its checksum does not match (the line was changed or damaged after it was written)",
-                path.display(),
-                self.n
-            )
-        })?;
-        Ok(Some((self.n, text)))
+        let had_sum = line.contains('\t');
+        let text = if !self.signed && !had_sum {
+            Some(line)
+        } else {
+            unsigned(line)
+        };
+        let Some(text) = text else {
+            if at_end {
+                torn("does not match its checksum");
+                return Ok(None);
+            }
+            bail!(
+                "journal {} line {n}: its checksum does not match (the line was changed or damaged after it was written)",
+                path.display()
+            );
+        };
+        self.n = n;
+        self.whole += got as u64;
+        self.had_sum = had_sum;
+        Ok(Some((n, text)))
     }
 }
 
@@ -161,7 +208,8 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
         host,
         answered,
         journal: {
-            let mut journal = Journal::appending(file, path, opts.checkpoints, checkpoint_file);
+            let mut journal =
+                Journal::appending(file, path, whole, opts.checkpoints, checkpoint_file);
             journal.since.bytes = whole;
             journal.since.step_ms = replay_ms;
             journal
@@ -171,7 +219,7 @@ pub fn resume(path: &Path, opts: &HostOptions) -> Result<Resumed> {
 }
 
 fn open(path: &Path) -> Result<File> {
-    File::open(path).with_context(|| format!("cannot open the journal {}", path.display()))
+    super::files::open_regular(path, "journal").map(|(file, _)| file)
 }
 
 /// The journal's header, whether its lines carry checksums, and the options it sets over

@@ -66,10 +66,46 @@ fn a_last_line_torn_inside_a_character_is_torn_like_any_other() {
     // The first byte of a two-byte character, then the kill.
     append(&path, b"{\"at\":\"\xc3");
     assert_eq!(resume(&path, &options()).unwrap().host.world.frame(), frame);
-    // A whole line that is not text is refused, naming its line.
+    // A last line that is not text is torn too (a full disk may leave any bytes) ...
+    let whole = std::fs::metadata(&path).unwrap().len();
     append(&path, b"\xff\xfe\n");
+    assert_eq!(resume(&path, &options()).unwrap().host.world.frame(), frame);
+    assert_eq!(std::fs::metadata(&path).unwrap().len(), whole, "cut off");
+    // ... but with a line after it, it is damage: refused, naming its line.
+    append(&path, b"\xff\xfe\n");
+    append(
+        &path,
+        (signed(&format!("{{\"at\":{}}}", frame + 1)) + "\n").as_bytes(),
+    );
     let e = refusal(&path, &options());
     assert!(e.contains("line 7") && e.contains("not UTF-8"), "{e}");
+}
+
+#[test]
+fn a_last_line_whose_checksum_does_not_match_is_dropped_and_cut_off_but_refused_in_the_middle() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("world.journal");
+    let frame = journal_of(&path, 5);
+    let whole = std::fs::metadata(&path).unwrap().len();
+    // What a full disk can leave: a line whole up to its newline but for its checksum.
+    let next = signed(&format!("{{\"at\":{}}}", frame + 1));
+    let torn = next.replace('\t', "\t0");
+    append(
+        &path,
+        (torn[..torn.len() - 1].to_string() + "\n").as_bytes(),
+    );
+    let resumed = resume(&path, &options()).unwrap();
+    assert_eq!(resumed.host.world.frame(), frame);
+    assert_eq!(std::fs::metadata(&path).unwrap().len(), whole, "cut off");
+    drop(resumed);
+    // The same line with a whole line after it: damage in the middle, refused.
+    append(
+        &path,
+        (torn[..torn.len() - 1].to_string() + "\n").as_bytes(),
+    );
+    append(&path, (next + "\n").as_bytes());
+    let e = refusal(&path, &options());
+    assert!(e.contains("line 7") && e.contains("checksum"), "{e}");
 }
 
 #[test]
@@ -301,4 +337,29 @@ fn a_resume_remembers_the_ids_of_its_last_seconds_as_old_as_they_were() {
         "still running: due when its steps have run"
     );
     assert_eq!(answered.len(), 2);
+}
+
+/// A disk that stays full: the lines owed are bounded; past the bound the journal stops
+/// at its last whole line, which still resumes, and refuses every command.
+#[test]
+fn a_journal_owes_at_most_its_bound_then_stops_and_refuses_commands() {
+    let mut journal = Journal::full();
+    journal.max_owed = 200;
+    for frame in 1..=5 {
+        journal.stepped(frame, 0.0);
+    }
+    assert!(
+        !journal.stopped && journal.owed.len() > 60,
+        "{}",
+        journal.owed
+    );
+    for frame in 6..=20 {
+        journal.stepped(frame, 0.0);
+    }
+    assert!(journal.stopped && journal.owed.is_empty());
+    let command = Command::World(ricochet_protocol::command::Action::Deselect);
+    let e = journal
+        .before(Intent::Apply(&command), 20, &None, &None)
+        .unwrap_err();
+    assert!(format!("{e:#}").contains("stopped"), "{e:#}");
 }
