@@ -425,13 +425,21 @@ fn resume_needs_its_journal_and_journal_names_the_same_file() {
             .args(["run", "--listen", &free_endpoint()])
             .args(args)
             .env("RUST_LOG", "warn")
+            // An error is said as a user reads it, never as a debug dump with a backtrace.
+            .env("RUST_BACKTRACE", "1")
             .output()
             .unwrap()
     };
     let out = run(&["--resume", missing.to_str().unwrap()]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("cannot open the journal"), "{err}");
+    assert!(
+        err.starts_with("ricochet-server: ")
+            && err.contains("the journal")
+            && err.contains("missing.journal"),
+        "{err}"
+    );
+    assert!(!err.contains("acktrace") && err.lines().count() == 1, "{err}");
     let other = dir.path().join("other.journal");
     let out = run(&[
         "--journal",

@@ -6,6 +6,8 @@
 //! certificates. What measures the server is `ricochet-lab`. Each command here reads its
 //! flags, calls the library and says what it wrote.
 
+use std::process::ExitCode;
+
 use anyhow::Result;
 use clap::Parser;
 use ricochet_protocol::net::{init_tracing, Mode};
@@ -16,9 +18,21 @@ mod simulate;
 
 use args::{Cli, Command};
 
-fn main() -> Result<()> {
+/// Errors are printed as a user reads them (the chain of causes on one line), never as a
+/// debug dump with a backtrace, whatever `RUST_BACKTRACE` says.
+fn main() -> ExitCode {
     init_tracing("info");
-    match Cli::parse().command {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("ricochet-server: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
         Command::Run(args) => {
             host::without_thread_caches();
             host::run(args.host_options()?)
