@@ -439,7 +439,10 @@ fn resume_needs_its_journal_and_journal_names_the_same_file() {
             && err.contains("missing.journal"),
         "{err}"
     );
-    assert!(!err.contains("acktrace") && err.lines().count() == 1, "{err}");
+    assert!(
+        !err.contains("acktrace") && err.lines().count() == 1,
+        "{err}"
+    );
     let other = dir.path().join("other.journal");
     let out = run(&[
         "--journal",
