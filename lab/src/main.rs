@@ -18,7 +18,7 @@ use ricochet_protocol::net::init_tracing;
 #[derive(Parser)]
 #[command(
     name = "ricochet-lab",
-    version,
+    version = ricochet_protocol::VERSION,
     about = "Ricochet's lab: measures the engine and real servers, and writes the figures of docs/"
 )]
 struct Cli {

@@ -28,3 +28,12 @@ pub mod net;
 
 /// The protocol's version: the frame layout's version byte.
 pub const PROTOCOL_VERSION: u8 = 5;
+
+/// What every Ricochet binary's `--version` says: the crate's version and the commit it
+/// was built from (`unknown` outside a git checkout).
+pub const VERSION: &str = concat!(
+    env!("CARGO_PKG_VERSION"),
+    " (commit ",
+    env!("RICOCHET_COMMIT"),
+    ")"
+);

@@ -38,17 +38,19 @@ impl Mode {
 
 /// Where a zenoh session connects and listens: the flags of every Ricochet binary
 /// (global, so they may come before or after a subcommand).
+/// The short flags are zenoh's own tools' (`-l`, `-e`, `-m`, `-c`).
 #[derive(clap::Args, Clone, Debug, Default)]
+#[command(next_help_heading = "Network")]
 pub struct NetworkArgs {
     /// Endpoint to listen on, e.g. tcp/127.0.0.1:7447 or tcp/0.0.0.0:7447. Repeatable.
-    #[arg(long, global = true, value_name = "ENDPOINT")]
+    #[arg(short, long, global = true, value_name = "ENDPOINT")]
     pub listen: Vec<String>,
     /// Endpoint of a peer or router to connect to, e.g. tcp/10.0.0.5:7447. Repeatable.
-    #[arg(long, global = true, value_name = "ENDPOINT")]
+    #[arg(short = 'e', long, global = true, value_name = "ENDPOINT")]
     pub connect: Vec<String>,
     /// peer (talk to peers directly; the default), client (only through a router) or
     /// router.
-    #[arg(long, global = true, value_enum)]
+    #[arg(short, long, global = true, value_enum)]
     pub mode: Option<Mode>,
     /// Also discover peers by multicast scouting (off: explicit endpoints only).
     #[arg(long, global = true)]
@@ -57,7 +59,7 @@ pub struct NetworkArgs {
     /// access control, anything zenoh offers. The flags given are merged over it; with a
     /// file, nothing else is assumed (no default endpoint, mode or scouting), so the file
     /// says how to connect. See assets/zenoh/ and docs/security.md.
-    #[arg(long, global = true, value_name = "FILE")]
+    #[arg(short, long, global = true, value_name = "FILE")]
     pub config: Option<PathBuf>,
 }
 
@@ -233,15 +235,49 @@ impl Network {
     }
 }
 
+/// What a binary's `completions SHELL` and `man` commands print: shell completions for
+/// `command`, or its manual page (roff), generated from its flags.
+#[derive(clap::Subcommand, Clone, Debug)]
+pub enum SelfDoc {
+    /// Print shell completions, e.g. `completions bash > /etc/bash_completion.d/NAME`.
+    Completions {
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
+    /// Print the manual page (roff), e.g. `man > NAME.1 && man ./NAME.1`.
+    Man,
+}
+
+impl SelfDoc {
+    /// Writes what was asked for `command` (the binary's whole command line) to `out`.
+    pub fn write(
+        &self,
+        mut command: clap::Command,
+        out: &mut dyn std::io::Write,
+    ) -> anyhow::Result<()> {
+        match self {
+            SelfDoc::Completions { shell } => {
+                let name = command.get_name().to_string();
+                clap_complete::generate(*shell, &mut command, name, out);
+            }
+            SelfDoc::Man => clap_mangen::Man::new(command).render(out)?,
+        }
+        Ok(())
+    }
+}
+
 /// Logs to standard error, filtered by `RUST_LOG` or else by `default_filter`
 /// (e.g. `"info,zenoh=warn"`). Call once, first thing in `main`.
 pub fn init_tracing(default_filter: &str) {
+    use std::io::IsTerminal;
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
                 .unwrap_or_else(|_| default_filter.into()),
         )
         .with_writer(std::io::stderr)
+        // Colour only for a person at a terminal: a log file or a pipe gets plain text.
+        .with_ansi(std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none())
         .init();
 }
 

@@ -84,3 +84,42 @@ fn every_command_is_in_the_help_of_both_clients() {
         );
     }
 }
+
+/// `--version` names the commit the binary was built from; shell completions and a man
+/// page come from the same flags; zenoh's short flags (`-e`, `-l`, `-m`, `-c`) are taken.
+#[test]
+fn version_completions_man_page_and_short_flags() {
+    let out = ricochet(&["--version"]);
+    assert!(out.status.success());
+    let version = String::from_utf8_lossy(&out.stdout).into_owned();
+    let head = Command::new("git")
+        .args(["rev-parse", "--short=10", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match head {
+        Some(head) => assert!(version.contains(&format!("(commit {head}")), "{version}"),
+        None => assert!(version.contains("(commit unknown)"), "{version}"),
+    }
+    let bash = ricochet(&["completions", "bash"]);
+    assert!(bash.status.success());
+    let bash = String::from_utf8_lossy(&bash.stdout);
+    assert!(
+        bash.contains("_ricochet()") && bash.contains("worlds"),
+        "{bash}"
+    );
+    let man = ricochet(&["man"]);
+    assert!(man.status.success());
+    let man = String::from_utf8_lossy(&man.stdout);
+    assert!(
+        man.contains(".TH ricochet 1") && man.contains("send"),
+        "{man}"
+    );
+    // -e with a bad endpoint is read as an endpoint, not refused as an unknown flag.
+    let out = ricochet(&["-e", "nonsense", "worlds"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("unexpected argument"), "{err}");
+    assert!(err.contains("nonsense"), "{err}");
+}

@@ -19,7 +19,7 @@ use ricochet_protocol::text::short;
 #[derive(Parser)]
 #[command(
     name = "ricochet",
-    version,
+    version = ricochet_protocol::VERSION,
     about = "Command-line client of a Ricochet world",
     long_about = "Command-line client of a Ricochet world.\n\n\
 A command is JSON ({\"do\": \"fire_dye_pack\", \"at\": [50, 60]}) or the short form\n\
@@ -94,6 +94,8 @@ enum Cmd {
     },
     /// List the worlds whose servers are up (exit 1, saying so, when none answers).
     Worlds,
+    #[command(flatten)]
+    Doc(ricochet_protocol::net::SelfDoc),
     /// Record the applied world commands as an input log (JSON Lines).
     Record {
         file: PathBuf,
@@ -120,7 +122,9 @@ enum Cmd {
 const ATTEMPTS: u32 = 3;
 
 fn main() {
-    init_tracing("warn");
+    // zenoh's own warnings (a scouting delay, say) are not the user's business here; the
+    // client says what failed itself.
+    init_tracing("warn,zenoh=error");
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => std::process::exit(code),
@@ -154,6 +158,11 @@ fn run(cli: Cli) -> Result<i32> {
     let network = cli.network.clone().client();
     let timeout = Duration::from_secs_f64(cli.timeout.max(0.01));
     match cli.command {
+        Cmd::Doc(doc) => {
+            use clap::CommandFactory;
+            doc.write(Cli::command(), &mut std::io::stdout().lock())?;
+            Ok(0)
+        }
         Cmd::Worlds => {
             let session = network.open()?;
             let worlds = list_worlds(&session, timeout)?;

@@ -16,7 +16,7 @@ use ricochet_server::host::{HostOptions, DEFAULT_MAX_FRAME_BYTES};
 #[derive(Parser)]
 #[command(
     name = "ricochet-server",
-    version,
+    version = ricochet_protocol::VERSION,
     about = "Ricochet: a 2D physics and particle server"
 )]
 pub struct Cli {
@@ -27,6 +27,7 @@ pub struct Cli {
 /// How a world runs, for `run` and `simulate` alike: overrides of its `[world]`, its
 /// limits, and an accuracy target that picks its setting.
 #[derive(Args, Clone, Debug)]
+#[command(next_help_heading = "World")]
 pub struct WorldFlags {
     /// Override a `[world]` field, e.g. --set relaxation_iterations=30
     /// --set gravity=[0,-9.8] --set integrator=explicit. Repeatable.
@@ -61,109 +62,134 @@ impl WorldFlags {
 #[derive(Args)]
 pub struct RunArgs {
     /// The scene file (TOML).
-    #[arg(long, required_unless_present = "resume")]
+    #[arg(help_heading = "World", long, required_unless_present = "resume")]
     pub scene: Option<PathBuf>,
     /// The world's name in key expressions.
-    #[arg(long, default_value = DEFAULT_WORLD)]
+    #[arg(help_heading = "World", long, default_value = DEFAULT_WORLD)]
     pub world: String,
     #[command(flatten)]
     pub network: NetworkArgs,
     /// Start paused; `resume` or `step` commands move the world.
-    #[arg(long)]
+    #[arg(help_heading = "World", long)]
     pub paused: bool,
     #[command(flatten)]
     pub how: WorldFlags,
     /// A key frame (all dynamic state) every this many frames.
-    #[arg(long, default_value_t = 60)]
+    #[arg(help_heading = "Frames", long, default_value_t = 60)]
     pub keyframe_interval: u64,
     /// Stop after this many frames instead of running until killed.
-    #[arg(long)]
+    #[arg(help_heading = "Frames", long)]
     pub max_frames: Option<u64>,
     /// Append every frame the server publishes to this file as JSON Lines, in the
     /// form of `simulate --dump` (full precision), flushed each frame.
-    #[arg(long, value_name = "FILE")]
+    #[arg(help_heading = "Frames", long, value_name = "FILE")]
     pub dump: Option<PathBuf>,
     /// The directory `load` commands may name scenes in (nothing outside it is read);
     /// the directory of --scene by default, unless that is the working directory (then
     /// none: `load` by name is refused).
-    #[arg(long, value_name = "DIR")]
+    #[arg(help_heading = "World", long, value_name = "DIR")]
     pub scenes: Option<PathBuf>,
     /// Steps per second of wall time at most: a world with a shorter dt runs slower
     /// than real time instead of flooding its viewers.
-    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    #[arg(
+        help_heading = "Frames",
+        long,
+        default_value_t = 1000.0,
+        value_name = "HZ"
+    )]
     pub max_rate: f64,
     /// Bytes of a key frame at most: a scene, a spawn or an emitter whose particles and
     /// bodies would pass it (estimated at the largest size of each record) is refused.
-    #[arg(long, default_value_t = DEFAULT_MAX_FRAME_BYTES, value_name = "BYTES")]
+    #[arg(help_heading = "Frames", long, default_value_t = DEFAULT_MAX_FRAME_BYTES, value_name = "BYTES")]
     pub max_frame_bytes: u64,
     /// Commands a second each sender may send over time (a sender is the zenoh id its
     /// session declares; Ricochet's clients declare theirs). Over it, commands are
     /// dropped and requests answered so.
-    #[arg(long, default_value_t = 1000.0, value_name = "N")]
+    #[arg(
+        help_heading = "Peers and their commands",
+        long,
+        default_value_t = 1000.0,
+        value_name = "N"
+    )]
     pub sender_rate: f64,
     /// Commands a sender may send at once above its rate.
-    #[arg(long, default_value_t = 500.0, value_name = "N")]
+    #[arg(
+        help_heading = "Peers and their commands",
+        long,
+        default_value_t = 500.0,
+        value_name = "N"
+    )]
     pub sender_burst: f64,
     /// Which claimed sender ids keep rate buckets and budgets of their own: `connected`,
     /// only ids of sessions connected to the server (any other claim is the anonymous
     /// sender's, so one process cannot claim many); `claimed`, every id as claimed (for
     /// clients that reach the server through other peers; through a router, claims are
     /// taken as they are whatever this says).
-    #[arg(long, value_enum, default_value_t = SenderIds::Connected, value_name = "WHICH")]
+    #[arg(help_heading = "Peers and their commands", long, value_enum, default_value_t = SenderIds::Connected, value_name = "WHICH")]
     pub sender_ids: SenderIds,
     /// Fraction of real time the commands of all senders may take of the stepping
     /// thread, over time: each command is priced by what it touches before it runs and
     /// charged what it took (docs/security.md, "The cost of a command").
-    #[arg(long, default_value_t = BudgetLimits::default().share, value_name = "FRACTION")]
+    #[arg(help_heading = "Peers and their commands", long, default_value_t = BudgetLimits::default().share, value_name = "FRACTION")]
     pub command_share: f64,
     /// Fraction of real time one sender's commands may take, over time.
-    #[arg(long, default_value_t = BudgetLimits::default().sender_share, value_name = "FRACTION")]
+    #[arg(help_heading = "Peers and their commands", long, default_value_t = BudgetLimits::default().sender_share, value_name = "FRACTION")]
     pub sender_share: f64,
     /// Milliseconds of the stepping thread commands may take at once above their share;
     /// a command priced above it is refused.
-    #[arg(long, default_value_t = BudgetLimits::default().burst.as_millis() as u64, value_name = "MS")]
+    #[arg(help_heading = "Peers and their commands", long, default_value_t = BudgetLimits::default().burst.as_millis() as u64, value_name = "MS")]
     pub command_burst_ms: u64,
     /// Commands (and, apart, requests) waiting for the frame boundary at most; past it
     /// they are dropped and requests answered so.
-    #[arg(long, default_value_t = 4096, value_name = "N")]
+    #[arg(
+        help_heading = "Peers and their commands",
+        long,
+        default_value_t = 4096,
+        value_name = "N"
+    )]
     pub queue: usize,
     /// Write every accepted command, with the frame it took effect in, and every stepped
     /// frame to FILE (JSON Lines, each line flushed as written). When FILE exists (a
     /// server stopped or killed), the world it holds is resumed first, bit for bit, and
     /// the journal goes on: the same command line starts a service and restarts it. On
     /// SIGTERM or SIGINT the server checkpoints the world beside FILE and exits.
-    #[arg(long, value_name = "FILE")]
+    #[arg(help_heading = "Journal", long, value_name = "FILE")]
     pub journal: Option<PathBuf>,
     /// Rebuild the world a journal holds, bit for bit, to its last frame, and go on
     /// (appending to the same journal); FILE must exist (--journal FILE resumes it when
     /// it exists and starts it otherwise; both may name the same FILE). The journal gives the scene, world name,
     /// overrides and limits; --scene, --world, --set and --limit are not needed.
-    #[arg(long, value_name = "FILE")]
+    #[arg(help_heading = "Journal", long, value_name = "FILE")]
     pub resume: Option<PathBuf>,
     /// Bytes the journal may grow to before the host checkpoints the world beside it
     /// (FILE.<frame>.checkpoint) and starts the journal again from there.
-    #[arg(long, default_value_t = Checkpoints::default().journal_bytes, value_name = "BYTES")]
+    #[arg(help_heading = "Journal", long, default_value_t = Checkpoints::default().journal_bytes, value_name = "BYTES")]
     pub journal_bytes: u64,
     /// Milliseconds of stepping after which the host checkpoints the world: about what a
     /// resume replays, whatever the run's length.
-    #[arg(long, default_value_t = Checkpoints::default().replay_ms, value_name = "MS")]
+    #[arg(help_heading = "Journal", long, default_value_t = Checkpoints::default().replay_ms, value_name = "MS")]
     pub checkpoint_after_ms: f64,
     /// Named states `save` may keep at most.
-    #[arg(long, default_value_t = TravelLimits::default().saves, value_name = "N")]
+    #[arg(help_heading = "Time travel and forks", long, default_value_t = TravelLimits::default().saves, value_name = "N")]
     pub saves: usize,
     /// Bytes all saved states may take at most.
-    #[arg(long, default_value_t = TravelLimits::default().save_bytes, value_name = "BYTES")]
+    #[arg(help_heading = "Time travel and forks", long, default_value_t = TravelLimits::default().save_bytes, value_name = "BYTES")]
     pub save_bytes: u64,
-    /// Bytes the history `rewind` goes back through may take (a checkpoint of the world
-    /// every --history-every frames; the oldest go first); 0 keeps none.
-    #[arg(long, default_value_t = TravelLimits::default().history_bytes, value_name = "BYTES")]
+    /// Bytes the history `rewind` goes back through may take (a copy of the world every
+    /// --history-every frames, by its estimated size; the oldest go first); 0 keeps none.
+    #[arg(help_heading = "Time travel and forks", long, default_value_t = TravelLimits::default().history_bytes, value_name = "BYTES")]
     pub history_bytes: u64,
-    /// Frames between two checkpoints of the history: a rewind replays at most this many
+    /// Frames between two copies in the history: a rewind replays at most this many
     /// steps.
-    #[arg(long, default_value_t = TravelLimits::default().history_every, value_name = "FRAMES")]
+    #[arg(help_heading = "Time travel and forks", long, default_value_t = TravelLimits::default().history_every, value_name = "FRAMES")]
     pub history_every: u64,
     /// Worlds this server serves at most, its own and the forks `fork` starts.
-    #[arg(long, default_value_t = 4, value_name = "N")]
+    #[arg(
+        help_heading = "Time travel and forks",
+        long,
+        default_value_t = 4,
+        value_name = "N"
+    )]
     pub max_worlds: usize,
 }
 
@@ -178,6 +204,11 @@ pub enum Command {
     /// state for late joiners on the ricochet/<world>/state queryable, one event per
     /// handled command on ricochet/<world>/event; a liveliness token
     /// ricochet/<world>/alive/<zid> says the world is up and which peer serves it.
+    #[command(after_help = "Examples:\n  \
+ricochet-server run --scene assets/scenes/emitters.toml\n  \
+ricochet-server run --scene table.toml --world table --paused -l tcp/0.0.0.0:7447\n  \
+ricochet-server run --scene table.toml --journal /var/lib/ricochet/table.journal    # a service: resumes after a stop\n  \
+ricochet-server run --scene pile.toml --accuracy 0.01 --limit bodies=20000")]
     Run(Box<RunArgs>),
     /// Make the TLS certificates of a secured deployment (assets/zenoh/).
     ///
@@ -195,6 +226,8 @@ pub enum Command {
         #[arg(long, default_value_t = 365)]
         days: u32,
     },
+    #[command(flatten)]
+    Doc(ricochet_protocol::net::SelfDoc),
     /// Run a zenoh router where servers and clients on several hosts meet.
     ///
     /// They connect to it with `--mode client --connect tcp/<router>:7447`.

@@ -38,6 +38,10 @@ fn run(cli: Cli) -> Result<()> {
             host::run(args.host_options()?)
         }
         Command::Simulate(args) => simulate::simulate(args),
+        Command::Doc(doc) => {
+            use clap::CommandFactory;
+            doc.write(Cli::command(), &mut std::io::stdout().lock())
+        }
         Command::Router { network } => {
             let mut net = network.server();
             net.mode = Some(Mode::Router);
