@@ -394,3 +394,22 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
     );
     assert!(again.ok, "{:?}", again.error);
 }
+
+/// `ricochet watch` on a paused world says so instead of printing nothing.
+#[test]
+fn watch_says_the_world_is_paused() {
+    let dir = temp_dir();
+    let scene = dir.path().join("table.toml");
+    std::fs::write(&scene, TABLE).unwrap();
+    let server = Server::launch("still", &["--scene", scene.to_str().unwrap(), "--paused"]);
+    let out = server.cli(&["watch", "--seconds", "3.5"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("world `still` is paused at frame 0"), "{err}");
+    // Running, it says nothing of the kind.
+    resume(&server.client());
+    let out = server.cli(&["watch", "--seconds", "3.5"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("paused"), "{err}");
+    assert!(String::from_utf8_lossy(&out.stdout).lines().count() > 60);
+}

@@ -478,6 +478,10 @@ pub struct WorldInfo {
     /// The world this one was forked from, when it is a fork.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub forked_from: Option<String>,
+    /// The world is paused (`pause`, `step`, `run --paused`): it sends no frames until
+    /// `resume` or `step`.
+    #[serde(default)]
+    pub paused: bool,
 }
 
 /// A frame stream's rate.

@@ -121,6 +121,9 @@ enum Cmd {
 /// server applies it once) before they stop and say where.
 const ATTEMPTS: u32 = 3;
 
+/// How long `watch` waits for a frame before it asks the world whether it is paused.
+const QUIET_BEFORE_ASKING: Duration = Duration::from_secs(2);
+
 fn main() {
     // zenoh's own warnings (a scouting delay, say) are not the user's business here; the
     // client says what failed itself.
@@ -364,6 +367,10 @@ fn watch(
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut dropped_key_frames = 0;
+    // A world that sends nothing is asked why, once a while: a paused world is said so
+    // (silence would read as a hang).
+    let mut last_frame = Instant::now();
+    let mut said_paused = false;
     loop {
         if frames.is_some_and(|n| seen >= n) || limit.is_some_and(|l| began.elapsed() >= l) {
             return Ok(0);
@@ -372,8 +379,23 @@ fn watch(
             .recv_timeout(Duration::from_millis(200))
             .map_err(|e| anyhow!("{e}"))?
         else {
+            if !said_paused && last_frame.elapsed() >= QUIET_BEFORE_ASKING {
+                last_frame = Instant::now();
+                if let Ok(info) = client.info(Duration::from_secs(1)) {
+                    if info.paused {
+                        said_paused = true;
+                        eprintln!(
+                            "ricochet: world `{}` is paused at frame {} (send `resume`, or `step n=N`); waiting for frames",
+                            short(world, 64).escape_debug(),
+                            decoder.frame
+                        );
+                    }
+                }
+            }
             continue;
         };
+        last_frame = Instant::now();
+        said_paused = false;
         let bytes = sample.payload().to_bytes();
         match decoder.apply(&bytes) {
             Ok(h) => {

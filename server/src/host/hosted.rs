@@ -199,6 +199,7 @@ impl Hosted {
             saves: self.travel.saves(),
             rewinds_to: self.travel.rewinds_to(),
             forked_from: self.forked_from.clone(),
+            paused: self.stepping.paused && self.stepping.pending_steps == 0,
         }
     }
 
