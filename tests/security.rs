@@ -634,3 +634,79 @@ fn a_loaded_scene_whose_names_hold_control_characters_is_refused() {
         info.groups
     );
 }
+
+/// Snapshots wait their turn behind an `info`: while ten sessions flood a large world
+/// (10 000 statics, 90 KB a snapshot) with snapshot queries, an honest `info` is answered
+/// in the next pass, ahead of the snapshots queued before it (counted: the snapshots that
+/// reached the flooders between the info's question and its answer).
+#[test]
+fn an_info_is_answered_while_snapshots_of_a_large_world_flood() {
+    let server = Server::start("bench/platforms-10k.toml", "snapshots", &[]);
+    let honest = server.client();
+    honest.info(TIMEOUT).expect("the world answers");
+    let key = honest.keys().snapshot.clone();
+    // Ten connected sessions, each querying under its own id: ten buckets of their own.
+    let flooders: Vec<_> = (0..10)
+        .map(|_| {
+            let client = server.client();
+            let id = client
+                .session()
+                .declare_publisher("elsewhere")
+                .wait()
+                .expect("a publisher")
+                .id();
+            (client, id)
+        })
+        .collect();
+    // When each snapshot reached its flooder, and how many bytes.
+    let arrived: Arc<std::sync::Mutex<Vec<(Instant, usize)>>> = Arc::default();
+    for (f, id) in &flooders {
+        for k in 0..150 {
+            let arrived = Arc::clone(&arrived);
+            f.session()
+                .get(&key)
+                .source_info(zenoh::sample::SourceInfo::new(*id, k))
+                .timeout(Duration::from_secs(30))
+                .callback(move |reply| {
+                    if let Ok(sample) = reply.result() {
+                        let len = sample.payload().len();
+                        arrived.lock().unwrap().push((Instant::now(), len));
+                    }
+                })
+                .wait()
+                .expect("a query goes out");
+        }
+    }
+    std::thread::sleep(Duration::from_millis(20));
+    let asked = Instant::now();
+    honest
+        .info(Duration::from_secs(20))
+        .expect("the honest info is answered");
+    let answered_at = Instant::now();
+    let began = Instant::now();
+    while arrived.lock().unwrap().len() < 1000 && began.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let arrived = arrived.lock().unwrap();
+    let ahead = arrived
+        .iter()
+        .filter(|(t, _)| *t >= asked && *t <= answered_at)
+        .count();
+    let bytes: usize = arrived.iter().map(|(_, b)| b).sum();
+    eprintln!(
+        "info answered in {:?}; {ahead} of {} snapshots ({} MB) reached the flooders meanwhile",
+        answered_at - asked,
+        arrived.len(),
+        bytes / 1_000_000
+    );
+    assert!(
+        arrived.len() >= 500,
+        "the flood was answered: {}",
+        arrived.len()
+    );
+    // What the outbox may hold of them (4 MiB, about 45), and a pass's worth.
+    assert!(
+        ahead <= 120,
+        "{ahead} snapshots went out ahead of the info asked after them"
+    );
+}

@@ -140,6 +140,9 @@ struct Queues {
     count: usize,
     bytes: usize,
     queries: VecDeque<(Ask, Query)>,
+    /// `info` queries, answered before the others: an answer of a few hundred bytes never
+    /// waits behind whole snapshots and states.
+    infos: VecDeque<Query>,
     buckets: HashMap<Sender, Bucket>,
     /// Each sender's bucket of queries.
     query_buckets: HashMap<Sender, Bucket>,
@@ -284,15 +287,21 @@ impl Inbox {
             ..self.limits
         };
         let mut q = self.lock();
-        if q.queries.len() >= self.limits.queries
-            || !take_token(&mut q.query_buckets, &sender, &per_sender)
+        let waiting = match ask {
+            Ask::Info => q.infos.len(),
+            _ => q.queries.len(),
+        };
+        if waiting >= self.limits.queries || !take_token(&mut q.query_buckets, &sender, &per_sender)
         {
             drop(q);
             // Dropping the query ends it for the querier: no answer.
             self.turned.queries_dropped.fetch_add(1, Ordering::Relaxed);
             return;
         }
-        q.queries.push_back((ask, query));
+        match ask {
+            Ask::Info => q.infos.push_back(query),
+            _ => q.queries.push_back((ask, query)),
+        }
     }
 
     /// The next command or request: the oldest of the sender whose turn it is.
@@ -312,8 +321,13 @@ impl Inbox {
     }
 
     /// The next query, if any.
-    pub fn next_query(&self) -> Option<(Ask, Query)> {
-        self.lock().queries.pop_front()
+    pub fn next_query(&self, heavy: bool) -> Option<(Ask, Query)> {
+        let mut q = self.lock();
+        match q.infos.pop_front() {
+            Some(query) => Some((Ask::Info, query)),
+            None if heavy => q.queries.pop_front(),
+            None => None,
+        }
     }
 }
 

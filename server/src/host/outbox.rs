@@ -116,6 +116,11 @@ impl Outbox {
     }
 
     /// Queues a reply to `query`; never blocks.
+    /// Bytes of replies and events waiting to leave.
+    pub fn waiting_bytes(&self) -> usize {
+        self.waiting.lock().unwrap_or_else(|e| e.into_inner()).bytes
+    }
+
     pub fn reply(&self, query: Query, body: Vec<u8>) {
         self.send(Out::Reply(query, body));
     }

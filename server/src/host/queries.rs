@@ -6,6 +6,10 @@ use super::serve::Serving;
 use super::upkeep::health;
 use super::MAX_QUERIES_PER_PASS;
 
+/// Bytes of replies waiting in the outbox past which snapshot and state queries wait their
+/// turn in the inbox (info queries are answered whatever waits).
+pub const HEAVY_REPLIES_WAITING: usize = 4 << 20;
+
 /// The state query's answer, kept for the (generation, frame, stream) it was made at.
 #[derive(Default)]
 pub(super) struct StateCache(Option<((u64, u64, u64), Vec<u8>)>);
@@ -20,7 +24,11 @@ impl Serving {
             ..
         } = self;
         for _ in 0..MAX_QUERIES_PER_PASS {
-            let Some((ask, query)) = wiring.inbox.next_query() else {
+            // Snapshots and states wait in the inbox while the outbox holds a bound of
+            // bytes: a flood of them cannot queue minutes of bytes ahead of the next
+            // `info` or command reply.
+            let heavy = wiring.outbox.waiting_bytes() < HEAVY_REPLIES_WAITING;
+            let Some((ask, query)) = wiring.inbox.next_query(heavy) else {
                 break;
             };
             let body = match ask {
