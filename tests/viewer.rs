@@ -628,7 +628,7 @@ b = "walls"
 /// world's bodies are drawn under its own root, the fork's moved aside so the two do not
 /// overlap, each with its name; the drift plots have a value at the frames both worlds
 /// decoded: zero at the fork, where the two are the same state, and more once the fork's
-/// collisions differ.
+/// collisions differ. With `--overlay`, neither world is moved.
 #[test]
 fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
     let dir = temp_dir();
@@ -755,4 +755,31 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
         energy.iter().any(|(_, e)| *e != 0.0),
         "the same kinetic energy throughout: {energy:?}"
     );
+
+    // Overlaid: both worlds in place, one over the other, still compared.
+    let file = dir.path().join("overlay.rrd");
+    let out = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "drift", "--world", "drift-fine", "--overlay"])
+        .args(["--connect", &server.endpoint, "--save"])
+        .arg(&file)
+        .args(["--frames", "30", "--wait", "20"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .output()
+        .expect("ricochet-viewer runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rrd = read_rrd(&file);
+    let x = |path: &str| rrd["translations"][path][0].as_f64().unwrap_or(f64::NAN);
+    assert_eq!((x("/world/drift"), x("/world/drift-fine")), (0.0, 0.0));
+    assert!(rrd["entities"]
+        .get("/world/drift-fine/bodies/balls")
+        .is_some());
+    assert!(rrd["scalars"]["/drift/body_distance/drift-fine"]
+        .as_object()
+        .is_some_and(|v| !v.is_empty()));
 }

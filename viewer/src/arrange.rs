@@ -14,6 +14,10 @@ use crate::sink::Place;
 /// The gap between worlds side by side, as a share of the widest world.
 const GAP: f64 = 0.08;
 
+/// How far above its bounds a world's name is written, as a share of its height (clear of
+/// a wall along the top), and the room the camera keeps for it.
+const LABEL_RISE: f64 = 0.08;
+
 /// The places of `worlds` (name and first info, at least two) and the layout of the view.
 pub fn arrange(worlds: &[(String, WorldInfo)], overlay: bool) -> (Vec<Place>, Views) {
     let width = |b: [[f64; 2]; 2]| (b[1][0] - b[0][0]).abs();
@@ -44,11 +48,14 @@ pub fn arrange(worlds: &[(String, WorldInfo)], overlay: bool) -> (Vec<Place>, Vi
             offset: [offset, 0.0],
             tint: overlay.then(|| draw::world_color(k)),
             color: draw::world_color(k),
-            label_at: [label_x, hi[1] + 0.02 * h],
+            label_at: [label_x, hi[1] + LABEL_RISE * h],
         });
         all = [
             [all[0][0].min(lo[0] + offset), all[0][1].min(lo[1])],
-            [all[1][0].max(hi[0] + offset), all[1][1].max(hi[1])],
+            [
+                all[1][0].max(hi[0] + offset),
+                all[1][1].max(hi[1] + LABEL_RISE * h),
+            ],
         ];
     }
     let names: Vec<&str> = worlds.iter().map(|(n, _)| n.as_str()).collect();
@@ -100,7 +107,7 @@ mod tests {
         for pair in places.windows(2) {
             assert!(pair[1].offset[0] - pair[0].offset[0] > 40.0);
         }
-        assert_eq!(views.bounds, [[10.0, 0.0], [136.4, 20.0]]);
+        assert_eq!(views.bounds, [[10.0, 0.0], [136.4, 21.6]]);
         assert!(places.iter().all(|p| p.tint.is_none()));
         assert_eq!(places[1].root(), "world/fine");
         assert_eq!(
@@ -118,7 +125,7 @@ mod tests {
         let worlds = [("a".to_string(), info(b)), ("b".to_string(), info(b))];
         let (places, views) = arrange(&worlds, true);
         assert!(places.iter().all(|p| p.offset == [0.0, 0.0]));
-        assert_eq!(views.bounds, b);
+        assert_eq!(views.bounds, [[0.0, 0.0], [40.0, 21.6]]);
         let tints: Vec<_> = places.iter().map(|p| p.tint.unwrap()).collect();
         assert_ne!(tints[0], tints[1]);
         // Their names do not sit on each other.
