@@ -9,7 +9,11 @@ Reads the file with the `rerun` package (rerun-sdk==0.36.3) and prints:
 - particle_counts / particle_figures: per frame, the points of /world/particles and the
   value of /stats/particles;
 - stats_frames: how many frames have figures (/stats/step_ms);
-- events: the lines of the text log /events.
+- events: the lines of the text log /events;
+- scalars: per entity under /drift/ (the plots of how far worlds drift apart), its value
+  at each frame;
+- translations: per entity with a transform (a world's root, side by side), its x, y, z;
+- labels: per entity with labelled points (a world's name), the labels.
 """
 import json
 import sys
@@ -21,6 +25,7 @@ def main(path):
     entities = {}
     particle_counts, particle_figures, events = {}, {}, []
     stats_frames = set()
+    scalars, translations, labels = {}, {}, {}
     for chunk in RrdReader(path).stream().to_chunks():
         ent = chunk.entity_path
         batch = chunk.to_record_batch()
@@ -41,6 +46,19 @@ def main(path):
             for f, row in zip(frames, batch.column("Scalars:scalars").to_pylist()):
                 if row:
                     particle_figures[str(f)] = row[0]
+        if ent.startswith("/drift/") and "Scalars:scalars" in names:
+            values = scalars.setdefault(ent, {})
+            for f, row in zip(frames, batch.column("Scalars:scalars").to_pylist()):
+                if row:
+                    values[str(f)] = row[0]
+        if "Transform3D:translation" in names:
+            for row in batch.column("Transform3D:translation").to_pylist():
+                if row is not None:
+                    translations[ent] = row[0] if isinstance(row[0], list) else row
+        if "Points2D:labels" in names:
+            for row in batch.column("Points2D:labels").to_pylist():
+                if row:
+                    labels[ent] = row
         if ent == "/stats/step_ms":
             stats_frames.update(f for f in frames if f is not None)
         if ent == "/events" and "TextLog:text" in names:
@@ -56,6 +74,9 @@ def main(path):
             "particle_figures": particle_figures,
             "stats_frames": len(stats_frames),
             "events": events,
+            "scalars": scalars,
+            "translations": translations,
+            "labels": labels,
         },
         sys.stdout,
     )

@@ -565,3 +565,221 @@ fn a_viewer_survives_its_server_being_killed_and_replaced() {
         "{text:?}"
     );
 }
+
+/// A user's table for two worlds side by side: no gravity, four walls, six balls already
+/// moving, the first of them to hit a wall or another ball about half a second in.
+fn drift_table() -> String {
+    let mut scene = String::from(
+        r#"
+[world]
+gravity = [0, 0]
+bounds = [[0, 0], [40, 20]]
+
+[[generate]]
+kind = "row"
+id = "wall"
+group = "walls"
+shape = "rect"
+size = [40, 1]
+start = [20, 0]
+step = [0, 20]
+count = 2
+mass = 0
+
+[[generate]]
+kind = "row"
+id = "side"
+group = "walls"
+shape = "rect"
+size = [1, 20]
+start = [0, 10]
+step = [40, 0]
+count = 2
+mass = 0
+
+[[interact]]
+a = "balls"
+b = "balls"
+
+[[interact]]
+a = "balls"
+b = "walls"
+"#,
+    );
+    let balls = [
+        ([8.0, 10.0], [18.0, 1.0]),
+        ([30.0, 10.5], [-12.0, 0.0]),
+        ([20.0, 5.0], [3.0, -14.0]),
+        ([12.0, 15.0], [-9.0, 8.0]),
+        ([33.0, 4.0], [10.0, 6.0]),
+        ([25.0, 16.0], [-7.0, -11.0]),
+    ];
+    for (k, (pos, vel)) in balls.iter().enumerate() {
+        scene.push_str(&format!(
+            "\n[[body]]\nid = \"ball-{k}\"\ngroup = \"balls\"\nshape = \"circle\"\nradius = 1\n\
+             pos = {pos:?}\nvel = {vel:?}\nrestitution = 0.9\nfriction = 0.1\n"
+        ));
+    }
+    scene
+}
+
+/// `--world A --world B`: a world and its fork under another setting (4 substeps), both
+/// paused at the fork, watched by one viewer into one recording, then both resumed. Each
+/// world's bodies are drawn under its own root, the fork's moved aside so the two do not
+/// overlap, each with its name; the drift plots have a value at the frames both worlds
+/// decoded: zero at the fork, where the two are the same state, and more once the fork's
+/// collisions differ. With `--overlay`, neither world is moved.
+#[test]
+fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
+    let dir = temp_dir();
+    let scene_file = dir.path().join("drift-table.toml");
+    std::fs::write(&scene_file, drift_table()).unwrap();
+    let server = Server::launch(
+        "drift",
+        &[
+            "--scene",
+            scene_file.to_str().unwrap(),
+            "--paused",
+            "--max-worlds",
+            "2",
+        ],
+    );
+    let client = server.client();
+    let fork = request(
+        &client,
+        Command::Server(ServerCommand::Fork {
+            world: "drift-fine".into(),
+            settings: std::collections::BTreeMap::from([(
+                "substeps".to_string(),
+                serde_json::json!(4),
+            )]),
+        }),
+    );
+    assert!(fork.ok, "{fork:?}");
+    let forked = ricochet_protocol::client::Client::open(&server.network(), "drift-fine").unwrap();
+    wait_answered(&forked, "the fork");
+
+    let file = dir.path().join("drift.rrd");
+    let frames = 240u64;
+    let mut viewer = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "drift", "--world", "drift-fine"])
+        .args(["--connect", &server.endpoint, "--save"])
+        .arg(&file)
+        .args(["--frames", &frames.to_string(), "--wait", "20"])
+        .env("RUST_LOG", "info,zenoh=warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("ricochet-viewer starts");
+    let log = lines_of(viewer.stderr.take().unwrap());
+    let mut viewer = Running(viewer);
+    // Both worlds joined (their paused state decoded, the fork's frame compared) before
+    // either moves.
+    // (The first line naming the fork is the viewer's `joined` of it.)
+    wait_line(&log, "drift-fine", Duration::from_secs(60), "the viewer");
+    std::thread::sleep(Duration::from_millis(1500));
+    resume(&client);
+    resume(&forked);
+
+    let began = std::time::Instant::now();
+    let status = loop {
+        if let Some(status) = viewer.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            began.elapsed() < Duration::from_secs(60),
+            "the viewer did not stop after {frames} frames of each world"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let rest: Vec<String> = log.try_iter().collect();
+    assert!(status.success(), "viewer failed: {rest:?}");
+
+    let rrd = read_rrd(&file);
+    let entities = rrd["entities"].as_object().expect("entities");
+    for world in ["drift", "drift-fine"] {
+        for path in [
+            format!("/world/{world}/bounds"),
+            format!("/world/{world}/statics/walls"),
+            format!("/world/{world}/bodies/balls"),
+            format!("/world/{world}/name"),
+            format!("/stats/kinetic_energy/{world}"),
+            format!("/stats/step_ms/{world}"),
+        ] {
+            assert!(
+                entities.contains_key(&path),
+                "{path} missing: {:?}",
+                entities.keys().collect::<Vec<_>>()
+            );
+        }
+        let drawn = entities[&format!("/world/{world}/bodies/balls")]["frames"]
+            .as_array()
+            .unwrap()
+            .len() as u64;
+        assert_eq!(drawn, frames, "{world}: frames drawn");
+        assert_eq!(rrd["labels"][&format!("/world/{world}/name")][0], world);
+    }
+    // One world's paths are not used with two.
+    assert!(!entities.contains_key("/world/bodies/balls"));
+    assert!(!entities.contains_key("/stats/step_ms"));
+    // The fork is moved aside by more than the table's width; the first stays in place.
+    let x = |path: &str| rrd["translations"][path][0].as_f64().unwrap_or(f64::NAN);
+    assert_eq!(x("/world/drift"), 0.0);
+    assert!(x("/world/drift-fine") > 40.0, "{}", rrd["translations"]);
+
+    let series = |path: &str| -> Vec<(u64, f64)> {
+        let mut v: Vec<(u64, f64)> = rrd["scalars"][path]
+            .as_object()
+            .unwrap_or_else(|| panic!("{path} has no values: {}", rrd["scalars"]))
+            .iter()
+            .map(|(f, v)| (f.parse().unwrap(), v.as_f64().unwrap()))
+            .collect();
+        v.sort_by_key(|(f, _)| *f);
+        v
+    };
+    let distance = series("/drift/body_distance/drift-fine");
+    let energy = series("/drift/kinetic_energy/drift-fine");
+    // Compared at the frames both decoded: nearly every one, both running in real time.
+    assert!(distance.len() as u64 >= frames / 2, "{distance:?}");
+    assert_eq!(
+        distance.iter().map(|(f, _)| f).collect::<Vec<_>>(),
+        energy.iter().map(|(f, _)| f).collect::<Vec<_>>()
+    );
+    // At the fork both worlds are the same state.
+    assert_eq!(distance[0].1, 0.0, "{distance:?}");
+    assert_eq!(energy[0].1, 0.0, "{energy:?}");
+    assert!(distance.iter().all(|(_, d)| d.is_finite() && *d >= 0.0));
+    let furthest = distance.iter().map(|(_, d)| *d).fold(0.0, f64::max);
+    assert!(furthest > 0.05, "the fork never drifted: {distance:?}");
+    assert!(
+        energy.iter().any(|(_, e)| *e != 0.0),
+        "the same kinetic energy throughout: {energy:?}"
+    );
+
+    // Overlaid: both worlds in place, one over the other, still compared.
+    let file = dir.path().join("overlay.rrd");
+    let out = Process::new(bin("ricochet-viewer"))
+        .args(["--world", "drift", "--world", "drift-fine", "--overlay"])
+        .args(["--connect", &server.endpoint, "--save"])
+        .arg(&file)
+        .args(["--frames", "30", "--wait", "20"])
+        .env("RUST_LOG", "warn")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .output()
+        .expect("ricochet-viewer runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rrd = read_rrd(&file);
+    let x = |path: &str| rrd["translations"][path][0].as_f64().unwrap_or(f64::NAN);
+    assert_eq!((x("/world/drift"), x("/world/drift-fine")), (0.0, 0.0));
+    assert!(rrd["entities"]
+        .get("/world/drift-fine/bodies/balls")
+        .is_some());
+    assert!(rrd["scalars"]["/drift/body_distance/drift-fine"]
+        .as_object()
+        .is_some_and(|v| !v.is_empty()));
+}

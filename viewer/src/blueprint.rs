@@ -1,5 +1,7 @@
 //! The default layout: the world's 2D view with a fixed camera on the scene's bounds, the
-//! step's figures as plots beside it, the text log of commands below them.
+//! step's figures as plots beside it, the text log of commands below them. Several worlds
+//! share the one 2D view (their roots side by side or overlaid) and every plot, with the
+//! plots of how far they drift apart after the step's.
 //!
 //! The SDK's layout builder has no visual bounds for 2D views, so the blueprint is written
 //! as the viewer stores it: one archetype per container and view, under fixed ids.
@@ -135,13 +137,38 @@ fn log_node(
     }
 }
 
-fn layout(bounds: [[f64; 2]; 2], scene: &str) -> Node {
-    let plots = PLOTS
+/// What the layout shows: the 2D view's title and camera, the plots beside it.
+pub struct Views {
+    /// The 2D view's title: `world (<scene>)` for one world.
+    pub title: String,
+    /// The scene's bounds, or those of all worlds as placed in the view, in world units.
+    pub bounds: [[f64; 2]; 2],
+    /// Each plot's entity path (its series are it or its children) and title.
+    pub plots: Vec<(String, String)>,
+}
+
+impl Views {
+    /// One world: its scene's name and bounds, the step's figures.
+    pub fn one_world(bounds: [[f64; 2]; 2], scene: &str) -> Views {
+        Views {
+            title: format!("world ({scene})"),
+            bounds,
+            plots: PLOTS
+                .iter()
+                .map(|(path, title)| (format!("stats/{path}"), (*title).to_string()))
+                .collect(),
+        }
+    }
+}
+
+fn layout(views: &Views) -> Node {
+    let plots = views
+        .plots
         .iter()
         .map(|(path, title)| Node::View {
             class: "TimeSeries",
-            name: (*title).to_string(),
-            origin: format!("/stats/{path}"),
+            name: title.clone(),
+            origin: format!("/{path}"),
             bounds: None,
         })
         .collect();
@@ -152,9 +179,9 @@ fn layout(bounds: [[f64; 2]; 2], scene: &str) -> Node {
         children: vec![
             Node::View {
                 class: "2D",
-                name: format!("world ({scene})"),
+                name: views.title.clone(),
                 origin: "/world".into(),
-                bounds: Some(draw::camera(bounds)),
+                bounds: Some(draw::camera(views.bounds)),
             },
             Node::Container {
                 kind: ContainerKind::Vertical,
@@ -179,19 +206,18 @@ fn layout(bounds: [[f64; 2]; 2], scene: &str) -> Node {
     }
 }
 
-/// Sends the layout for a scene with these bounds to `rec` and makes it the active one.
+/// Sends the layout of `views` to `rec` and makes it the active one.
 pub fn send(
     rec: &RecordingStream,
     app_id: &'static str,
-    bounds: [[f64; 2]; 2],
-    scene: &str,
+    views: &Views,
 ) -> RecordingStreamResult<()> {
     let (bp, storage) = RecordingStreamBuilder::new(app_id)
         .recording_id(uuid::Uuid::new_v4().to_string())
         .blueprint()
         .memory()?;
     bp.set_time_sequence("blueprint", 0);
-    let root = log_node(&bp, &layout(bounds, scene), &mut Vec::new())?;
+    let root = log_node(&bp, &layout(views), &mut Vec::new())?;
     let root_id = root.trim_start_matches("container/");
     let root_uuid = uuid::Uuid::parse_str(root_id).expect("container ids are uuids");
     bp.log(

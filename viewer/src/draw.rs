@@ -33,6 +33,20 @@ const PALETTE: [[u8; 4]; 8] = [
     [150, 150, 255, 255], // lavender
 ];
 
+/// Colours of several worlds watched at once (their plot lines and names, and every
+/// shape when overlaid), none of them red or orange, nor the one world's plot green.
+const WORLD_COLORS: [[u8; 4]; 4] = [
+    [70, 180, 255, 255],  // blue
+    [255, 90, 220, 255],  // magenta
+    [250, 230, 70, 255],  // yellow
+    [240, 240, 240, 255], // white
+];
+
+/// The colour of the `index`th world watched.
+pub fn world_color(index: usize) -> [u8; 4] {
+    WORLD_COLORS[index % WORLD_COLORS.len()]
+}
+
 /// A world point in the view's frame.
 pub fn to_view(p: [f64; 2]) -> [f32; 2] {
     [p[0] as f32, -(p[1] as f32)]
@@ -341,6 +355,11 @@ impl Timeline {
             self.frame_of(frame),
             if time.is_finite() { time } else { 0.0 },
         )
+    }
+
+    /// The timeline frame and time last mapped.
+    pub fn last(&self) -> Option<(u64, f64)> {
+        self.last
     }
 
     /// The timeline frame of a server frame of the current run (for events), at most

@@ -1,43 +1,57 @@
-//! `ricochet-viewer`: subscribes to a Ricochet world over zenoh and logs it to Rerun.
+//! `ricochet-viewer`: subscribes to Ricochet worlds over zenoh and logs them to Rerun.
 //!
-//! In: frames, snapshots and events of one world (zenoh). Out: Rerun entities (bounds,
-//! bodies, particles, emitters, the step's figures, the commands applied), to the web
-//! viewer it serves, a native viewer, a running viewer or an .rrd file. `sink` turns
-//! decoded state into Rerun logs, `draw` builds the shapes, `blueprint` lays out the view.
+//! In: frames, snapshots and events of one world or several (zenoh). Out: Rerun entities
+//! (bounds, bodies, particles, emitters, the step's figures, the commands applied), to the
+//! web viewer it serves, a native viewer, a running viewer or an .rrd file. `watch` is one
+//! world's loop, `sink` turns decoded state into Rerun logs, `draw` builds the shapes,
+//! `blueprint` lays out the view; with several worlds, `arrange` places them in the one
+//! view and `drift` plots how far they drift apart.
 //!
-//! Frames are delta-encoded, so every frame that arrives is decoded (cheap); drawing is
-//! what costs, so each pass of the loop draws only the newest state (at most `--fps` times
-//! a second) and logs the figures of every frame it decoded. When Rerun is slower than the world, frames are skipped, never
-//! queued without bound, and the server is never held back: it publishes real-time frames
-//! with zenoh's drop congestion control. A gap in the frames (a frame lost on the way)
-//! is repaired by asking the server for a key frame of its state now.
+//! Each world is watched on a thread of its own, into the one recording. One world's
+//! entities are `world/...`, `stats/<plot>` and `events`; several worlds' go under a root
+//! each (`world/<name>/...`, `stats/<plot>/<name>`, `events/<name>`), and the drift plots
+//! under `drift/`.
 
+mod arrange;
 mod between;
 mod blueprint;
 mod draw;
+mod drift;
 mod sink;
+mod watch;
 
 use std::path::PathBuf;
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 use clap::{ArgGroup, Parser};
-use ricochet_protocol::client::{parse_event, Client};
-use ricochet_protocol::frame::DecodeError;
+use ricochet_protocol::client::Client;
+use ricochet_protocol::command::WorldInfo;
 use ricochet_protocol::keys::DEFAULT_WORLD;
 use ricochet_protocol::net::{init_tracing, NetworkArgs};
 
-use crate::between::Between;
-use crate::sink::WorldSink;
+use crate::sink::{Place, WorldSink};
+use crate::watch::{DriftFeed, Pace};
 
 /// Draws a Ricochet world in Rerun: bounds, bodies, particles, the step's figures and the
-/// commands applied.
+/// commands applied. Given several worlds (a world and its forks under other settings),
+/// draws them side by side and plots how far they drift apart.
 #[derive(Parser, Debug)]
 #[command(version, group(ArgGroup::new("sink").args(["web", "spawn", "connect_rerun", "save"])))]
 struct Opts {
-    /// The world to watch.
-    #[arg(long, default_value = DEFAULT_WORLD)]
-    world: String,
+    /// The world to watch. Given more than once (`--world table --world table-fine`),
+    /// every world is drawn in the one 2D view, side by side in the order given, each
+    /// under its name (or over each other with --overlay); every plot has a line per
+    /// world, and two more plot how far each world drifts from the first, frame by frame:
+    /// the largest distance between two bodies of the same id, and its kinetic energy
+    /// less the first's, at the frames both have decoded.
+    #[arg(long = "world", value_name = "NAME", default_value = DEFAULT_WORLD)]
+    worlds: Vec<String>,
+    /// With several --world: draw the worlds over each other, each in a colour of its
+    /// own (the collided flag's red left out), rather than side by side.
+    #[arg(long)]
+    overlay: bool,
     /// Where to find the world's server (default: connect to tcp/127.0.0.1:7447, where a
     /// server listens).
     #[command(flatten)]
@@ -66,7 +80,7 @@ struct Opts {
     /// carry one frame in 2, 4 or 8 steps (default: every step).
     #[arg(long, value_name = "RATE", value_parser = ricochet_protocol::net::parse_bits_per_second)]
     max_bandwidth: Option<f64>,
-    /// Stop after drawing this many frames.
+    /// Stop after drawing this many frames (of each world).
     #[arg(long, value_name = "N")]
     frames: Option<u64>,
     /// Stop when no frame has arrived for this long, seconds (default: never, but 10 with
@@ -186,18 +200,6 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(re_sdk::RecordingStre
     Ok((rec, Served::Web))
 }
 
-/// How often the viewer checks that its statics are from the world's current server and
-/// scene.
-const SOURCE_CHECK: Duration = Duration::from_secs(2);
-
-/// The world's scene generation, if its server answers.
-fn info_generation(client: &Client) -> Option<u64> {
-    client
-        .info(Duration::from_secs(1))
-        .ok()
-        .map(|i| i.generation)
-}
-
 /// Asks for the world's info until its server answers or `wait` runs out.
 fn wait_for_world(
     client: &Client,
@@ -222,257 +224,104 @@ fn run(opts: Opts) -> Result<()> {
     if opts.frames == Some(0) {
         bail!("--frames must be at least 1");
     }
-    let min_draw_interval = match opts
-        .fps
-        .unwrap_or(if opts.save.is_some() { 0.0 } else { 30.0 })
-    {
-        hz if hz > 0.0 && hz.is_finite() => Duration::from_secs_f64(1.0 / hz),
-        0.0 => Duration::ZERO,
-        hz => bail!("--fps must be 0 or more, not {hz}"),
+    for (k, name) in opts.worlds.iter().enumerate() {
+        if opts.worlds[..k].contains(name) {
+            bail!("--world {name} is given twice");
+        }
+    }
+    let pace = Pace {
+        frames: opts.frames,
+        min_draw_interval: match opts
+            .fps
+            .unwrap_or(if opts.save.is_some() { 0.0 } else { 30.0 })
+        {
+            hz if hz > 0.0 && hz.is_finite() => Duration::from_secs_f64(1.0 / hz),
+            0.0 => Duration::ZERO,
+            hz => bail!("--fps must be 0 or more, not {hz}"),
+        },
+        idle_exit: opts
+            .idle_exit
+            .or(opts.save.as_ref().map(|_| 10.0))
+            .map(Duration::from_secs_f64),
     };
-    let idle_exit = opts
-        .idle_exit
-        .or(opts.save.as_ref().map(|_| 10.0))
-        .map(Duration::from_secs_f64);
-    let network = opts.network.clone().client();
-    let mut client = Client::open(&network, &opts.world)?;
-    let info = wait_for_world(&client, Duration::from_secs_f64(opts.wait))?;
-    tracing::info!(world = %opts.world, scene = %info.scene, "joined");
-    if let Some(bits) = opts.max_bandwidth {
-        client.watch_every(info.stream_for(bits));
+    let worlds = join_worlds(&opts)?;
+    let (rec, served) = open_sink(&opts, "ricochet")?;
+
+    // One world: today's paths and layout (sent with its info). Several: a place each,
+    // one layout for all, and a thread that compares their frames.
+    let several = worlds.len() > 1;
+    let names: Vec<String> = worlds.iter().map(|(c, _)| c.keys().world.clone()).collect();
+    let places = if several {
+        let infos: Vec<(String, WorldInfo)> = names
+            .iter()
+            .cloned()
+            .zip(worlds.iter().map(|(_, info)| info.clone()))
+            .collect();
+        let (places, views) = arrange::arrange(&infos, opts.overlay);
+        blueprint::send(&rec, "ricochet", &views)?;
+        for (name, place) in names.iter().zip(&places).skip(1) {
+            drift::log_series(&rec, &names[0], name, place.color)?;
+        }
+        places
+    } else {
+        vec![Place::only()]
+    };
+    // A few seconds of frames of every world: the comparison is quick, so a full channel
+    // only ever holds a world's loop back for a moment.
+    let (samples, compared) = mpsc::sync_channel(1024);
+    let drift = several.then(|| {
+        let (rec, names) = (rec.clone(), names.clone());
+        std::thread::spawn(move || drift::run(rec, names, compared))
+    });
+
+    let began = Instant::now();
+    let (done, finished) = mpsc::channel();
+    for (index, ((client, info), place)) in worlds.into_iter().zip(places).enumerate() {
+        let sink = WorldSink::new(rec.clone(), "ricochet", place)?;
+        let feed = several.then(|| DriftFeed {
+            world: index,
+            samples: samples.clone(),
+        });
+        let done = done.clone();
+        std::thread::Builder::new()
+            .name(format!("world {}", names[index]))
+            .spawn(move || {
+                let _ = done.send((index, watch::watch(client, info, sink, pace, feed)));
+            })
+            .context("cannot start a world's thread")?;
+    }
+    // The comparing thread stops once every world's loop has.
+    drop((samples, done));
+    for _ in 0..names.len() {
+        let (index, result) = finished
+            .recv()
+            .map_err(|_| anyhow!("a world's loop stopped without a word (it panicked)"))?;
+        let name = &names[index];
+        let tally = if several {
+            result.with_context(|| format!("world `{name}`"))?
+        } else {
+            result?
+        };
         tracing::info!(
-            every = client.every(),
-            "watching the stream of one frame in {} steps, to fit {bits} bits a second",
-            client.every()
+            world = %name,
+            drawn = tally.drawn,
+            skipped = tally.skipped,
+            resyncs = tally.resyncs,
+            seconds = format!("{:.2}", began.elapsed().as_secs_f64()),
+            draw_ms = format!(
+                "{:.3}",
+                tally.draw_time.as_secs_f64() * 1e3 / tally.drawn.max(1) as f64
+            ),
+            "done"
         );
     }
-
-    let (rec, served) = open_sink(&opts, "ricochet")?;
-    let mut sink = WorldSink::new(rec, "ricochet")?;
-    sink.set_info(info)?;
-
-    let events = client.events()?;
-    let snapshots = client.snapshots()?;
-    let (frames, mut decoder) = client.join(Duration::from_secs(5))?;
-    // Which server, and which of its scenes, the statics came from: checked every few
-    // seconds, so a restarted server or a missed snapshot is caught up with.
-    let mut source = (
-        client.servers(Duration::from_secs(2))?,
-        info_generation(&client),
-    );
-    let mut last_check = Instant::now();
-    // A resync that failed (the server gone, say): retried at most once a second until a
-    // key frame or a resync brings the decoder back.
-    let mut lost_since: Option<Instant> = None;
-    sink.log_statics(&decoder.statics)?;
-    // On a reduced-rate stream the state comes with the stream's next key frame.
-    if decoder.synced {
-        sink.log_stats(decoder.frame, decoder.time, &decoder.stats, 0)?;
-        sink.draw(&decoder)?;
+    if let Some(drift) = drift {
+        let compared = drift
+            .join()
+            .map_err(|_| anyhow!("the drift plots' thread panicked"))??;
+        tracing::info!(compared, "frames compared between the worlds");
     }
-
-    let mut last_frame_at = Instant::now();
-    let mut skipped: u64 = 0;
-    let mut resyncs: u64 = 0;
-    let mut dropped_key_frames: u64 = 0;
-    let mut reported_skips = Instant::now();
-    let mut draw_time = Duration::ZERO;
-    // Frames decoded since the last drawing.
-    let mut pending = 0u64;
-    let mut last_draw = Instant::now();
-    // On a reduced-rate stream: the steps between its last two frames, drawn as they come
-    // due; and the newest frame, which the next one is interpolated from.
-    let mut between: Option<Between> = None;
-    let mut newest: Option<ricochet_protocol::frame::FrameDecoder> = None;
-    let began = Instant::now();
-    while opts.frames.is_none_or(|n| sink.frames_drawn < n) {
-        while let Ok(Some(sample)) = events.try_recv() {
-            match parse_event(&sample) {
-                Ok(event) => sink.log_event(&event)?,
-                Err(e) => sink.log_note(&format!("unreadable event: {e:#}"), "WARN")?,
-            }
-        }
-        // A snapshot comes when the statics change or a scene is (re)loaded.
-        let mut new_statics = false;
-        while let Ok(Some(sample)) = snapshots.try_recv() {
-            match decoder.apply(&sample.payload().to_bytes()) {
-                Ok(_) => new_statics = true,
-                Err(e) => sink.log_note(&format!("unreadable snapshot: {e}"), "WARN")?,
-            }
-        }
-        if last_check.elapsed() >= SOURCE_CHECK {
-            last_check = Instant::now();
-            let now = (
-                client.servers(Duration::from_secs(1)).unwrap_or_default(),
-                info_generation(&client),
-            );
-            if !now.0.is_empty() && now.1.is_some() && now != source {
-                // A new server, or a new scene: the statics and state again, from scratch.
-                match client.catch_up(Duration::from_secs(2)) {
-                    Ok(fresh) => {
-                        decoder = fresh;
-                        (between, newest) = (None, None);
-                        new_statics = true;
-                        lost_since = None;
-                        let what = if now.0 != source.0 {
-                            "the world's server changed (restarted?)"
-                        } else {
-                            "the world's scene was reloaded"
-                        };
-                        sink.log_note(
-                            &format!(
-                                "{what}: statics and state fetched again at frame {}",
-                                decoder.frame
-                            ),
-                            "WARN",
-                        )?;
-                        source = now;
-                    }
-                    Err(e) => sink.log_note(
-                        &format!("catching up with the server failed, will retry: {e:#}"),
-                        "WARN",
-                    )?,
-                }
-            }
-        }
-        if new_statics {
-            if let Ok(info) = client.info(Duration::from_secs(2)) {
-                sink.set_info(info)?;
-            }
-            sink.log_statics(&decoder.statics)?;
-        }
-
-        // Between a reduced-rate stream's frames: draw each step as it comes due.
-        if let Some(b) = between.as_mut() {
-            let now = Instant::now();
-            if let Some(step) = b
-                .due(now, min_draw_interval.is_zero())
-                .filter(|_| last_draw.elapsed() >= min_draw_interval)
-            {
-                last_draw = now;
-                sink.draw_between(&b.draw(step))?;
-                draw_time += last_draw.elapsed();
-            }
-        }
-        let wait = between
-            .as_ref()
-            .and_then(|b| b.wait(Instant::now()))
-            .map_or(Duration::from_millis(200), |w| {
-                w.max(min_draw_interval.saturating_sub(last_draw.elapsed()))
-                    .clamp(Duration::from_millis(1), Duration::from_millis(200))
-            });
-        let Ok(Some(first)) = frames.recv_timeout(wait) else {
-            if idle_exit.is_some_and(|limit| last_frame_at.elapsed() >= limit) {
-                sink.log_note("the world stopped sending frames", "WARN")?;
-                break;
-            }
-            continue;
-        };
-        last_frame_at = Instant::now();
-        let mut batch = vec![first];
-        while let Ok(Some(sample)) = frames.try_recv() {
-            batch.push(sample);
-        }
-        let mut applied = 0u64;
-        for sample in &batch {
-            let bytes = sample.payload().to_bytes();
-            match decoder.apply(&bytes) {
-                Ok(h) => {
-                    applied += 1;
-                    sink.log_stats(h.frame, h.time, &h.stats, bytes.len())?;
-                    if decoder.dropped_key_frames > dropped_key_frames {
-                        dropped_key_frames = decoder.dropped_key_frames;
-                        sink.log_note(
-                            &format!("a key frame the stream did not follow was dropped ({dropped_key_frames} so far)"),
-                            "WARN",
-                        )?;
-                    }
-                }
-                Err(DecodeError::Stale { .. }) => {}
-                Err(DecodeError::OutOfSync { held, follows }) => {
-                    if lost_since.is_some_and(|t| t.elapsed() < Duration::from_secs(1)) {
-                        continue;
-                    }
-                    // A reduced-rate stream is for a slow link: its next key frame
-                    // resyncs, not the whole state at once.
-                    if client.every() > 1 {
-                        continue;
-                    }
-                    resyncs += 1;
-                    let resynced = client.state(Duration::from_secs(2)).and_then(|state| {
-                        decoder
-                            .apply(&state)
-                            .map_err(|e| anyhow!("the server's state is unreadable: {e}"))
-                    });
-                    match resynced {
-                        Ok(_) => {
-                            lost_since = None;
-                            sink.log_note(
-                                &format!("frames after {held} up to {follows} lost on the way; resynced at frame {} (resync {resyncs})", decoder.frame),
-                                "WARN",
-                            )?;
-                        }
-                        Err(e) => {
-                            lost_since = Some(Instant::now());
-                            sink.log_note(
-                                &format!("frames after {held} up to {follows} lost and the resync failed ({e:#}); waiting for the next key frame"),
-                                "WARN",
-                            )?;
-                        }
-                    }
-                }
-                Err(e) => sink.log_note(&format!("unreadable frame: {e}"), "WARN")?,
-            }
-        }
-        pending += applied;
-        if client.every() > 1 && applied > 0 && decoder.synced {
-            // A reduced-rate stream's frame: the steps since the last one are drawn as
-            // they come due, this frame last (the frame before drawn whole first).
-            // A recording (no drawing rate to keep) draws every step: those of the last
-            // frame its process was too late for come first.
-            if let Some(b) = between.as_mut().filter(|_| min_draw_interval.is_zero()) {
-                for d in b.rest() {
-                    sink.draw_between(&d)?;
-                }
-            }
-            let before = between.take().map(Between::into_newest).or(newest.take());
-            // One copy of the decoder a stream frame: the interpolation's end, or else
-            // the next one's start.
-            match before {
-                Some(from) if Between::spans(&from, &decoder) => {
-                    between = Some(Between::new(from, decoder.clone(), Instant::now()));
-                    pending = 0;
-                    continue;
-                }
-                _ => newest = Some(decoder.clone()),
-            }
-        }
-        if pending == 0 || last_draw.elapsed() < min_draw_interval {
-            continue;
-        }
-        skipped += pending - 1;
-        pending = 0;
-        last_draw = Instant::now();
-        sink.draw(&decoder)?;
-        draw_time += last_draw.elapsed();
-        if skipped > 0 && reported_skips.elapsed() >= Duration::from_secs(5) {
-            tracing::debug!(
-                skipped,
-                "frames decoded but not drawn (the --fps cap, or a slow sink)"
-            );
-            reported_skips = Instant::now();
-        }
-    }
-    sink.recording().flush_blocking()?;
-    let drawn = sink.frames_drawn;
-    tracing::info!(
-        drawn,
-        skipped,
-        resyncs,
-        seconds = format!("{:.2}", began.elapsed().as_secs_f64()),
-        draw_ms = format!("{:.3}", draw_time.as_secs_f64() * 1e3 / drawn.max(1) as f64),
-        "done"
-    );
+    rec.flush_blocking()?;
     if served == Served::Web {
         // The page reads from this process: keep it up so the recording can be browsed.
         println!("ricochet-viewer: stopped drawing; still serving the recording (Ctrl-C to quit)");
@@ -481,6 +330,33 @@ fn run(opts: Opts) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Opens a client for every world (one zenoh session for all) and waits for each to
+/// answer; on a link of `--max-bandwidth`, each watches the stream that fits it.
+fn join_worlds(opts: &Opts) -> Result<Vec<(Client, WorldInfo)>> {
+    let network = opts.network.clone().client();
+    let wait = Duration::from_secs_f64(opts.wait);
+    let mut worlds: Vec<(Client, WorldInfo)> = Vec::with_capacity(opts.worlds.len());
+    for name in &opts.worlds {
+        let mut client = match worlds.first() {
+            None => Client::open(&network, name)?,
+            Some((first, _)) => Client::with_session(first.session().clone(), name)?,
+        };
+        let info = wait_for_world(&client, wait)?;
+        tracing::info!(world = %name, scene = %info.scene, "joined");
+        if let Some(bits) = opts.max_bandwidth {
+            client.watch_every(info.stream_for(bits));
+            tracing::info!(
+                world = %name,
+                every = client.every(),
+                "watching the stream of one frame in {} steps, to fit {bits} bits a second",
+                client.every()
+            );
+        }
+        worlds.push((client, info));
+    }
+    Ok(worlds)
 }
 
 fn main() {

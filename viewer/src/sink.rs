@@ -1,16 +1,23 @@
 //! Turns a world's decoded state into Rerun log calls: one batched archetype per group,
 //! one for all particles, one for the emitters, a scalar per figure.
+//!
+//! Where a world's entities go is its [`Place`]: the only world's under `world/`,
+//! `stats/<plot>` and `events`; each of several worlds' under a root of its own
+//! (`world/<name>/...`, `stats/<plot>/<name>`, `events/<name>`), moved aside by a
+//! transform on its root or drawn in one colour over the others.
 
 use std::collections::BTreeSet;
 
 use anyhow::Result;
 use re_sdk::RecordingStream;
-use re_sdk_types::archetypes::{Clear, LineStrips2D, Points2D, Scalars, SeriesLines, TextLog};
+use re_sdk_types::archetypes::{
+    Clear, LineStrips2D, Points2D, Scalars, SeriesLines, TextLog, Transform3D,
+};
 use re_sdk_types::components::{Color, Radius, TextLogLevel};
 use ricochet_protocol::command::{Event, WorldInfo};
 use ricochet_protocol::frame::{Body, FrameDecoder, FrameStats};
 
-use crate::blueprint::{self, PLOTS};
+use crate::blueprint::{self, Views, PLOTS};
 use crate::draw;
 
 /// Outline width, in UI points (constant on screen whatever the zoom).
@@ -19,10 +26,64 @@ const LINE_RADIUS: f32 = 0.75;
 /// Each plot's line colour: distinct from the world's colours, so a test can find the plots.
 pub const PLOT_COLOR: [u8; 4] = [0, 255, 0, 255];
 
+/// Where one world's entities go in the recording, and how its shapes are coloured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Place {
+    /// The world's name when several are drawn; `None` for the only one, whose entity
+    /// paths are those of a viewer of one world (`world/...`, `stats/<plot>`, `events`).
+    pub name: Option<String>,
+    /// How far the world's root is moved in the 2D view, world units (side by side).
+    pub offset: [f64; 2],
+    /// One colour for every shape of the world instead of its groups' (overlaid worlds).
+    pub tint: Option<[u8; 4]>,
+    /// The colour of the world's lines in the plots, and of its name.
+    pub color: [u8; 4],
+    /// Where the world's name is written, in its own coordinates (several worlds).
+    pub label_at: [f64; 2],
+}
+
+impl Place {
+    /// The only world watched: today's paths, the groups' colours, the plots' green.
+    pub fn only() -> Place {
+        Place {
+            name: None,
+            offset: [0.0, 0.0],
+            tint: None,
+            color: PLOT_COLOR,
+            label_at: [0.0, 0.0],
+        }
+    }
+
+    /// The root of the world's shapes: `world` or `world/<name>`.
+    pub fn root(&self) -> String {
+        match &self.name {
+            None => "world".into(),
+            Some(name) => format!("world/{name}"),
+        }
+    }
+
+    /// The series of one of the step's figures: `stats/<plot>` or `stats/<plot>/<name>`.
+    pub fn stat(&self, plot: &str) -> String {
+        match &self.name {
+            None => format!("stats/{plot}"),
+            Some(name) => format!("stats/{plot}/{name}"),
+        }
+    }
+
+    /// The world's text log: `events` or `events/<name>`.
+    pub fn events(&self) -> String {
+        match &self.name {
+            None => "events".into(),
+            Some(name) => format!("events/{name}"),
+        }
+    }
+}
+
 /// What the viewer has logged, to log only what changed.
 pub struct WorldSink {
     rec: RecordingStream,
     app_id: &'static str,
+    place: Place,
     info: Option<WorldInfo>,
     static_groups: BTreeSet<String>,
     dynamic_groups: BTreeSet<String>,
@@ -33,24 +94,41 @@ pub struct WorldSink {
 }
 
 impl WorldSink {
-    pub fn new(rec: RecordingStream, app_id: &'static str) -> Result<Self> {
+    /// A sink for the world at `place`: its plots' lines are logged now; the layout is
+    /// sent with the world's info when it is the only world (several worlds share one,
+    /// sent by the caller).
+    pub fn new(rec: RecordingStream, app_id: &'static str, place: Place) -> Result<Self> {
         for (path, title) in PLOTS {
+            let name = match &place.name {
+                None => title.to_string(),
+                Some(world) => world.clone(),
+            };
             rec.log_static(
-                format!("stats/{path}"),
+                place.stat(path),
                 &SeriesLines::new()
-                    .with_colors([Color::from_unmultiplied_rgba(
-                        PLOT_COLOR[0],
-                        PLOT_COLOR[1],
-                        PLOT_COLOR[2],
-                        PLOT_COLOR[3],
-                    )])
-                    .with_names([title])
+                    .with_colors([color(place.color)])
+                    .with_names([name])
                     .with_widths([2.0]),
+            )?;
+        }
+        if let Some(name) = &place.name {
+            let [dx, dy] = place.offset;
+            rec.log_static(
+                place.root(),
+                &Transform3D::from_translation([dx as f32, -dy as f32, 0.0]),
+            )?;
+            rec.log_static(
+                format!("{}/name", place.root()),
+                &Points2D::new([draw::to_view(place.label_at)])
+                    .with_colors([color(place.color)])
+                    .with_radii([Radius::new_ui_points(3.0)])
+                    .with_labels([name.as_str()]),
             )?;
         }
         Ok(WorldSink {
             rec,
             app_id,
+            place,
             info: None,
             static_groups: BTreeSet::new(),
             dynamic_groups: BTreeSet::new(),
@@ -61,8 +139,9 @@ impl WorldSink {
         })
     }
 
-    pub fn recording(&self) -> &RecordingStream {
-        &self.rec
+    /// The timeline frame and time the last frame's figures were logged at.
+    pub fn logged_at(&self) -> Option<(u64, f64)> {
+        self.timeline.last()
     }
 
     /// A new scene (or the first): the layout and the bounds, as static data.
@@ -74,11 +153,15 @@ impl WorldSink {
             .info
             .as_ref()
             .is_none_or(|old| old.bounds != info.bounds || old.scene != info.scene);
-        if relayout {
-            blueprint::send(&self.rec, self.app_id, info.bounds, &info.scene)?;
+        if relayout && self.place.name.is_none() {
+            blueprint::send(
+                &self.rec,
+                self.app_id,
+                &Views::one_world(info.bounds, &info.scene),
+            )?;
         }
         self.rec.log_static(
-            "world/bounds",
+            format!("{}/bounds", self.place.root()),
             &LineStrips2D::new([draw::bounds_outline(info.bounds)])
                 .with_colors([color(draw::BOUNDS)])
                 .with_radii([Radius::new_ui_points(LINE_RADIUS)]),
@@ -90,7 +173,7 @@ impl WorldSink {
         if let (true, Some(why)) = (new_pick, &info.accuracy) {
             // What the server picked for the scene's accuracy target, and why.
             self.rec.log(
-                "events",
+                self.place.events(),
                 &TextLog::new(format!("server setting: {why}")).with_level(TextLogLevel::INFO),
             )?;
         }
@@ -104,10 +187,11 @@ impl WorldSink {
         let groups = self.info.as_ref().map_or(&[][..], |i| &i.groups[..]);
         log_outlines(
             &self.rec,
-            "world/statics",
+            &format!("{}/statics", self.place.root()),
             true,
             statics,
             groups,
+            self.place.tint,
             &mut self.static_groups,
         )
     }
@@ -133,7 +217,7 @@ impl WorldSink {
             bytes as f64,
         ];
         for ((path, _), v) in PLOTS.iter().zip(values) {
-            self.rec.log(format!("stats/{path}"), &Scalars::single(v))?;
+            self.rec.log(self.place.stat(path), &Scalars::single(v))?;
         }
         Ok(())
     }
@@ -152,8 +236,10 @@ impl WorldSink {
         self.rec.set_time_sequence("frame", frame as i64);
         self.rec.set_duration_secs("sim_time", time);
         if restarted {
-            for path in ["world/bodies", "world/particles", "world/emitters"] {
-                self.rec.log(path, &Clear::recursive())?;
+            let root = self.place.root();
+            for leaf in ["bodies", "particles", "emitters"] {
+                self.rec
+                    .log(format!("{root}/{leaf}"), &Clear::recursive())?;
             }
             self.dynamic_groups.clear();
             self.had_particles = false;
@@ -183,19 +269,21 @@ impl WorldSink {
 
     fn draw_state(&mut self, d: &FrameDecoder) -> Result<()> {
         let groups = self.info.as_ref().map_or(&[][..], |i| &i.groups[..]);
+        let root = self.place.root();
         log_outlines(
             &self.rec,
-            "world/bodies",
+            &format!("{root}/bodies"),
             false,
             &d.bodies,
             groups,
+            self.place.tint,
             &mut self.dynamic_groups,
         )?;
 
         if !d.particles.is_empty() || self.had_particles {
             let p = draw::particle_points(&d.particles, d.frame);
             self.rec.log(
-                "world/particles",
+                format!("{root}/particles"),
                 &Points2D::new(p.positions)
                     .with_colors(p.colors.into_iter().map(color))
                     .with_radii(p.radii),
@@ -210,7 +298,7 @@ impl WorldSink {
                 .map(|e| format!("emitter ({} left)", e.remaining))
                 .collect();
             self.rec.log(
-                "world/emitters",
+                format!("{root}/emitters"),
                 &Points2D::new(positions)
                     .with_colors([color(draw::EMITTER)])
                     .with_radii([Radius::new_ui_points(5.0)])
@@ -248,27 +336,28 @@ impl WorldSink {
             )
         };
         self.rec
-            .log("events", &TextLog::new(text).with_level(level))?;
+            .log(self.place.events(), &TextLog::new(text).with_level(level))?;
         Ok(())
     }
 
     /// A line of the viewer's own (a resync, dropped frames, a new scene).
     pub fn log_note(&self, text: &str, level: &str) -> Result<()> {
         self.rec
-            .log("events", &TextLog::new(text).with_level(level))?;
+            .log(self.place.events(), &TextLog::new(text).with_level(level))?;
         Ok(())
     }
 }
 
 /// One `LineStrips2D` per group of `bodies` under `root/<group>` (static data or at the
-/// current time), and a clear for each group in `logged` that has no body left; `logged`
-/// becomes the groups logged now.
+/// current time), all in `tint` if given, and a clear for each group in `logged` that has
+/// no body left; `logged` becomes the groups logged now.
 fn log_outlines(
     rec: &RecordingStream,
     root: &str,
     as_static: bool,
     bodies: &[Body],
     groups: &[String],
+    tint: Option<[u8; 4]>,
     logged: &mut BTreeSet<String>,
 ) -> Result<()> {
     let by_group = draw::outlines_by_group(bodies, groups);
@@ -276,7 +365,12 @@ fn log_outlines(
     for gone in logged.difference(&now) {
         rec.log_with_static(format!("{root}/{gone}"), as_static, &Clear::flat())?;
     }
-    for (group, o) in by_group {
+    for (group, mut o) in by_group {
+        if let Some(tint) = tint {
+            // Overlaid worlds are told apart by colour alone: the collided flag's red
+            // would hide whose body it is.
+            o.colors.fill(tint);
+        }
         rec.log_with_static(
             format!("{root}/{group}"),
             as_static,
