@@ -38,7 +38,7 @@ use crate::watch::{DriftFeed, Pace};
 /// commands applied. Given several worlds (a world and its forks under other settings),
 /// draws them side by side and plots how far they drift apart.
 #[derive(Parser, Debug)]
-#[command(version, group(ArgGroup::new("sink").args(["web", "spawn", "connect_rerun", "save"])))]
+#[command(version = ricochet_protocol::VERSION, group(ArgGroup::new("sink").args(["web", "spawn", "connect_rerun", "save"])))]
 struct Opts {
     /// The world to watch. Given more than once (`--world table --world table-fine`),
     /// every world is drawn in the one 2D view, side by side in the order given, each
