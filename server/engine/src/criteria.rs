@@ -490,6 +490,55 @@ mod tests {
         assert!(!m.holds());
     }
 
+    /// `energy_change` is the end's kinetic energy against the start's, up or down: a
+    /// body that keeps its speed holds it, one stopped by a wall loses it all.
+    #[test]
+    fn energy_change_compares_the_end_with_the_start() {
+        let criteria = Criteria {
+            steps: 60,
+            energy_change: Some(0.02),
+            overlap: None,
+            ..Criteria::for_test()
+        };
+        let run = |w: &mut World| {
+            let mut m = Monitor::new(w, &criteria);
+            for _ in 0..60 {
+                w.step();
+                m.observe(w);
+            }
+            m
+        };
+        let mut free = world(&[(DVec2::ZERO, DVec2::new(3.0, 0.0), 1.0)]);
+        let kept = run(&mut free);
+        assert!(kept.figures().energy_change < 1e-9, "{:?}", kept.figures());
+        assert!(kept.holds());
+        // Into a static wall, with no bounce: stopped.
+        let mut stopped = World::new(WorldConfig {
+            gravity: DVec2::ZERO,
+            ..WorldConfig::default()
+        });
+        for (id, pos, vel, mass) in [
+            ("ball", DVec2::ZERO, DVec2::new(3.0, 0.0), 1.0),
+            ("wall", DVec2::new(2.0, 0.0), DVec2::ZERO, 0.0),
+        ] {
+            stopped
+                .add_body(BodyDef {
+                    id: id.into(),
+                    group: "all".into(),
+                    pos,
+                    vel,
+                    mass,
+                    restitution: 0.0,
+                    ..BodyDef::default()
+                })
+                .unwrap();
+        }
+        stopped.add_interaction("all", "all", true).unwrap();
+        let lost = run(&mut stopped);
+        assert!(lost.figures().energy_change > 0.9, "{:?}", lost.figures());
+        assert!(!lost.holds());
+    }
+
     #[test]
     fn another_engines_states_are_judged_as_the_worlds() {
         let mut w = world(&[
