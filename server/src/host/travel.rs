@@ -174,15 +174,6 @@ impl Travel {
         self.marks.front().map(|m| m.frame)
     }
 
-    /// The hash of the world's state at `frame`, if kept.
-    pub fn hash_at(&self, frame: u64) -> Option<u64> {
-        self.hashes
-            .iter()
-            .rev()
-            .find(|(f, _)| *f == frame)
-            .map(|&(_, h)| h)
-    }
-
     /// The kept hashes from `from` to `to`: the latest [`MAX_HASHES_A_REPLY`] of them.
     pub fn hashes(&self, from: Option<u64>, to: Option<u64>) -> Vec<FrameHash> {
         let picked: Vec<&(u64, u64)> = self

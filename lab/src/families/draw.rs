@@ -1,94 +1,16 @@
-//! Scene families: for each kind of scene, a generator that draws one from ranges with a
-//! seed and writes it as a scene file whose `[criteria]` state the physical invariants the
-//! engine must hold whatever the scene (`ricochet-lab families`). A failing seed is a file
-//! anyone can run (`ricochet-server simulate --scene FILE`) and judge the same way.
-//!
-//! Sizes in the invariants are each body's own: a drift or an overlap is in sizes of the
-//! body (the smaller of a pair), a final speed in the smallest body's sizes a second.
-//! Stopping distances against v^2 / (2 mu g) are not judged yet (no criterion states
-//! them).
+//! The families' generators: each draws one scene from its ranges and writes it, with the
+//! `[criteria]` its invariants state, as a scene file's text.
 
 use std::fmt::Write as _;
 
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 use rand_chacha::ChaCha8Rng;
-
-/// A family of scenes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Family {
-    /// Pyramids, columns and walls of boxes built at rest: sizes 0.05 to 20, aspect 0.25
-    /// to 4, 2 to 100 levels (pyramids to 40), gaps 0 to 1% of a size, friction 0.1 to 1,
-    /// masses 0.01 to 1000, up to 1e6 from the origin, steps of 1/240 to 1/15 s.
-    Piles,
-    /// A heavy box on a light one on the ground, or heavy boxes dropped on a bed of
-    /// light circles: mass ratios 10 to 1e5.
-    HeavyOnLight,
-    /// Circles crowded into a closed box without gravity, from 50% to 110% of its area,
-    /// its walls a tenth of a body to several bodies thick.
-    Crowds,
-    /// 100 to 2000 circles and boxes mixed, dropped into a bin from heights that make 5
-    /// to 50 layers.
-    Rains,
-    /// A heavy body (mass ratios 10 to 1000) at 10 to 300 u/s into a block of light boxes
-    /// or circles, without gravity; the heavy body 1 to 8 times their size.
-    Impacts,
-    /// Columns and pyramids of boxes started 10% to 50% overlapped.
-    Overlaps,
-    /// Restitution 1, friction 0, no gravity: gases of 50 to 1000 circles in a box, rows
-    /// of touching and nearly touching balls.
-    Elastic,
-    /// Bodies 0.01 to 0.1 at 100 to 2000 u/s against walls 0.02 to 0.5 thick.
-    Bullets,
-}
-
-impl Family {
-    pub const ALL: [Family; 8] = [
-        Family::Piles,
-        Family::HeavyOnLight,
-        Family::Crowds,
-        Family::Rains,
-        Family::Impacts,
-        Family::Overlaps,
-        Family::Elastic,
-        Family::Bullets,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Family::Piles => "piles",
-            Family::HeavyOnLight => "heavy-on-light",
-            Family::Crowds => "crowds",
-            Family::Rains => "rains",
-            Family::Impacts => "impacts",
-            Family::Overlaps => "overlaps",
-            Family::Elastic => "elastic",
-            Family::Bullets => "bullets",
-        }
-    }
-
-    /// The scene of `seed`, as a scene file's text (its first line says what was drawn).
-    pub fn scene(self, seed: u64) -> String {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ ((self as u64 + 1) << 48));
-        let mut s = Scene::default();
-        match self {
-            Family::Piles => piles(&mut rng, &mut s),
-            Family::HeavyOnLight => heavy_on_light(&mut rng, &mut s),
-            Family::Crowds => crowds(&mut rng, &mut s),
-            Family::Rains => rains(&mut rng, &mut s),
-            Family::Impacts => impacts(&mut rng, &mut s),
-            Family::Overlaps => overlaps(&mut rng, &mut s),
-            Family::Elastic => elastic(&mut rng, &mut s),
-            Family::Bullets => bullets(&mut rng, &mut s),
-        }
-        format!("# {} seed {seed}: {}\n{}", self.name(), s.note, s.text)
-    }
-}
 
 /// A scene being written.
 #[derive(Default)]
-struct Scene {
-    note: String,
-    text: String,
+pub(super) struct Scene {
+    pub(super) note: String,
+    pub(super) text: String,
 }
 
 impl Scene {
@@ -232,7 +154,7 @@ fn criteria(s: &mut Scene, lines: &[String]) {
     s.line("");
 }
 
-fn piles(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn piles(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let size = log_uniform(rng, 0.05, 20.0);
     let aspect = log_uniform(rng, 0.25, 4.0);
     let (w, h) = (size, size * aspect);
@@ -327,7 +249,7 @@ fn piles(rng: &mut ChaCha8Rng, s: &mut Scene) {
     );
 }
 
-fn heavy_on_light(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn heavy_on_light(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let ratio = log_uniform(rng, 10.0, 1e5);
     let light = 1.0;
     world(s, 1.0 / 60.0, [0.0, -10.0], ([-30.0, -2.0], [30.0, 40.0]));
@@ -431,7 +353,7 @@ fn heavy_on_light(rng: &mut ChaCha8Rng, s: &mut Scene) {
     );
 }
 
-fn crowds(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn crowds(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let r = rng.random_range(0.2..=1.0);
     let fill = rng.random_range(0.5..=1.1);
     let count = rng.random_range(50..=400) as f64;
@@ -498,7 +420,7 @@ fn crowds(rng: &mut ChaCha8Rng, s: &mut Scene) {
     );
 }
 
-fn rains(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn rains(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let count = rng.random_range(100..=2000);
     let size = rng.random_range(0.2..=0.6);
     let layers = rng.random_range(5..=50) as f64;
@@ -599,7 +521,7 @@ fn rains(rng: &mut ChaCha8Rng, s: &mut Scene) {
     s.note = format!("{count} bodies of {size:.2} into a bin {width:.2} wide (about {layers} layers), from {drop:.2} up");
 }
 
-fn impacts(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn impacts(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let ratio = log_uniform(rng, 10.0, 1000.0);
     let speed = log_uniform(rng, 10.0, 300.0);
     let small = 0.5;
@@ -674,7 +596,7 @@ fn impacts(rng: &mut ChaCha8Rng, s: &mut Scene) {
     );
 }
 
-fn overlaps(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn overlaps(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let overlap = rng.random_range(0.1..=0.5);
     let size = log_uniform(rng, 0.2, 5.0);
     let pyramid = rng.random_bool(0.5);
@@ -730,7 +652,7 @@ fn overlaps(rng: &mut ChaCha8Rng, s: &mut Scene) {
     );
 }
 
-fn elastic(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn elastic(rng: &mut ChaCha8Rng, s: &mut Scene) {
     if rng.random_bool(0.5) {
         let count = rng.random_range(50..=1000);
         let r = 0.5;
@@ -834,7 +756,7 @@ fn elastic(rng: &mut ChaCha8Rng, s: &mut Scene) {
     criteria(s, &["steps = 1200".into(), "energy_change = 0.02".into()]);
 }
 
-fn bullets(rng: &mut ChaCha8Rng, s: &mut Scene) {
+pub(super) fn bullets(rng: &mut ChaCha8Rng, s: &mut Scene) {
     let r = log_uniform(rng, 0.005, 0.05);
     let v = log_uniform(rng, 100.0, 2000.0);
     let t = log_uniform(rng, 0.02, 0.5);
@@ -872,174 +794,4 @@ fn bullets(rng: &mut ChaCha8Rng, s: &mut Scene) {
         ],
     );
     s.note = format!("{count} circles of {r:.3} at {v:.0} u/s against a wall {t:.3} thick");
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn every_family_draws_scenes_that_load_and_state_criteria() {
-        for family in Family::ALL {
-            for seed in 0..8 {
-                let text = family.scene(seed);
-                let path = std::path::PathBuf::from(format!("{}-{seed}.toml", family.name()));
-                ricochet_engine::scene::parse(&text, &path, &[])
-                    .unwrap_or_else(|e| panic!("{text}\n{e}"));
-                let criteria = ricochet_engine::scene::criteria(&text, &path)
-                    .unwrap()
-                    .unwrap_or_else(|| panic!("{} states no criteria", path.display()));
-                assert!(criteria.steps > 0);
-                // The same seed draws the same scene.
-                assert_eq!(family.scene(seed), text);
-            }
-            assert_ne!(family.scene(1), family.scene(2));
-        }
-    }
-}
-
-/// One seed of one family under one setting, judged.
-#[derive(Clone, Debug)]
-pub struct Run {
-    pub family: Family,
-    pub seed: u64,
-    pub setting: String,
-    pub row: crate::suite::Row,
-    /// Where its scene file was written.
-    pub file: std::path::PathBuf,
-}
-
-/// Runs `seeds` of each of `families` under each setting (a label and `[world]`
-/// overrides), writing each scene to `dir` (`<family>-<seed>.toml`) and judging it by its
-/// criteria; `progress` ticks once a run.
-pub fn run(
-    families: &[Family],
-    seeds: std::ops::Range<u64>,
-    settings: &[(String, Vec<String>)],
-    dir: &std::path::Path,
-    progress: &indicatif::ProgressBar,
-) -> anyhow::Result<Vec<Run>> {
-    std::fs::create_dir_all(dir)?;
-    progress.set_length((families.len() * seeds.clone().count() * settings.len()) as u64);
-    let mut runs = Vec::new();
-    for &family in families {
-        for seed in seeds.clone() {
-            let file = dir.join(format!("{}-{seed}.toml", family.name()));
-            std::fs::write(&file, family.scene(seed))?;
-            for (label, overrides) in settings {
-                progress.set_message(format!("{} {seed} / {label}", family.name()));
-                let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
-                let row = crate::suite::measure(&file, label, &overrides)?;
-                runs.push(Run {
-                    family,
-                    seed,
-                    setting: label.clone(),
-                    row,
-                    file: file.clone(),
-                });
-                progress.inc(1);
-            }
-        }
-    }
-    Ok(runs)
-}
-
-/// A table per family and setting: seeds held of seeds run, the worst figure of each
-/// invariant over every seed (`!` where some seed failed it), the mean ms/step over every
-/// step of every seed, and the seeds that failed.
-pub fn markdown(runs: &[Run]) -> String {
-    let mut out = String::new();
-    let mut keys: Vec<(Family, String)> = Vec::new();
-    for r in runs {
-        if !keys.contains(&(r.family, r.setting.clone())) {
-            keys.push((r.family, r.setting.clone()));
-        }
-    }
-    let mut table = crate::table::Table::new([
-        "family",
-        "setting",
-        "held",
-        "worst figures (limit)",
-        "ms/step, mean",
-        "failed seeds",
-    ]);
-    for (family, setting) in keys {
-        let of: Vec<&Run> = runs
-            .iter()
-            .filter(|r| r.family == family && r.setting == setting)
-            .collect();
-        let held = of.iter().filter(|r| r.row.holds).count();
-        let mut worst: Vec<(&'static str, f64, f64, bool)> = Vec::new();
-        for r in &of {
-            for j in &r.row.verdict {
-                match worst.iter_mut().find(|w| w.0 == j.name) {
-                    Some(w) => {
-                        w.1 = w.1.max(j.figure);
-                        w.3 &= j.pass;
-                    }
-                    None => worst.push((j.name, j.figure, j.limit, j.pass)),
-                }
-            }
-        }
-        let steps: u64 = of.iter().map(|r| r.row.steps).sum();
-        let ms = of
-            .iter()
-            .map(|r| r.row.ms_mean * r.row.steps as f64)
-            .sum::<f64>()
-            / steps.max(1) as f64;
-        let failed: Vec<String> = of
-            .iter()
-            .filter(|r| !r.row.holds)
-            .map(|r| r.seed.to_string())
-            .collect();
-        table.row(vec![
-            family.name().to_string(),
-            setting,
-            format!("{held} of {}", of.len()),
-            worst
-                .iter()
-                .map(|(name, figure, limit, pass)| {
-                    format!(
-                        "{}{name} {figure:.3e} ({limit})",
-                        if *pass { "" } else { "!" }
-                    )
-                })
-                .collect::<Vec<_>>()
-                .join(", "),
-            format!("{ms:.3}"),
-            if failed.len() > 12 {
-                format!("{}, ... ({} in all)", failed[..12].join(", "), failed.len())
-            } else {
-                failed.join(", ")
-            },
-        ]);
-    }
-    out.push_str(&table.to_string());
-    out
-}
-
-#[cfg(test)]
-mod held {
-    use super::*;
-
-    /// The families the default holds today, at fixed seeds, judged in full; the others
-    /// are run and reported by `ricochet-lab families` (docs/bench/families.md) until the
-    /// engine holds them.
-    #[test]
-    fn the_default_holds_the_bullet_family_at_fixed_seeds() {
-        let dir = tempfile::tempdir().unwrap();
-        let progress = indicatif::ProgressBar::hidden();
-        let runs = run(
-            &[Family::Bullets],
-            0..6,
-            &[("the default".to_string(), Vec::new())],
-            dir.path(),
-            &progress,
-        )
-        .unwrap();
-        assert_eq!(runs.len(), 6);
-        for r in &runs {
-            assert!(r.row.holds, "{}: {}", r.file.display(), r.row.criteria);
-        }
-    }
 }
