@@ -163,6 +163,8 @@ pub(super) struct Found {
     pub smallest: f64,
     /// Whether a contact may bounce (its pair's restitution is above 0).
     pub bouncing: bool,
+    /// Whether a contact with a static body overlaps beyond its slop.
+    pub deep_fixed: bool,
 }
 
 impl Default for Found {
@@ -172,6 +174,7 @@ impl Default for Found {
             deepest: 0.0,
             smallest: f64::INFINITY,
             bouncing: false,
+            deep_fixed: false,
         }
     }
 }
@@ -184,6 +187,7 @@ impl Found {
             deepest: self.deepest.max(other.deepest),
             smallest: self.smallest.min(other.smallest),
             bouncing: self.bouncing || other.bouncing,
+            deep_fixed: self.deep_fixed || other.deep_fixed,
         }
     }
 }
@@ -282,6 +286,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             );
             found.smallest = found.smallest.min(size);
             found.bouncing |= restitution > 0.0;
+            let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
+            found.deep_fixed |= fixed && -gap > slop;
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
@@ -298,7 +304,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 pseudo_impulse: 0.0,
                 pair: (first + k) as u32,
                 speculative,
-                fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
+                fixed,
                 bounced: false,
             });
         }
