@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import struct
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -14,6 +15,7 @@ from .commands import command
 from .decode import FrameDecoder
 from .errors import CommandRefused, ConnectionFailed, DecodeError, NoReply
 from .frame import Frame
+from .layout import KIND_DELTA, KIND_STATICS
 from .session import Sender, Server, open_session, servers
 
 Point = Sequence[float]
@@ -278,7 +280,13 @@ class World:
         seen = 0
         if count is not None and count <= 0:
             return
+        # Until a delta follows the state, a key frame queued before it (not newer) is
+        # skipped: it would take the receiver back.
+        joined = False
         for payload in self.payloads(seconds):
+            number = struct.unpack_from("<Q", payload, 5)[0] if len(payload) >= 13 else 0
+            if not joined and decoder.synced and decoder.frame is not None and number <= decoder.frame:
+                continue
             dropped = decoder.dropped_key_frames
             try:
                 kind = decoder.apply(payload)
@@ -289,8 +297,9 @@ class World:
                     f"dropped a key frame the stream did not follow ({decoder.dropped_key_frames} so far)",
                     file=sys.stderr,
                 )
-            if kind == 2:
+            if kind == KIND_STATICS:
                 continue
+            joined = joined or kind == KIND_DELTA
             yield decoder.to_frame()
             seen += 1
             if count is not None and seen >= count:
