@@ -106,19 +106,21 @@ class _Bytes:
 
     def raw(self, at: I64, width: int) -> npt.NDArray[np.uint8]:
         """`width` bytes at each of `at`, shape (n, width)."""
-        return self.b[self.clip(at[:, None] + np.arange(width))]
+        windows = np.lib.stride_tricks.sliding_window_view(self.b, width)
+        return windows[self.clip(at)]
 
     def f32(self, at: I64) -> npt.NDArray[np.float32]:
-        return np.ascontiguousarray(self.raw(at, 4)).view("<f4").reshape(-1).astype(np.float32)
+        return self.raw(at, 4).view("<f4").reshape(-1)
 
     def u32(self, at: I64) -> I64:
-        return np.ascontiguousarray(self.raw(at, 4)).view("<u4").reshape(-1).astype(np.int64)
+        return self.raw(at, 4).view("<u4").reshape(-1).astype(np.int64)
 
 
-def _ends(s: _Bytes, exact: bool) -> npt.NDArray[np.intp]:
-    """Where a record that started at each byte of the section would end. Every index
-    stays within the padding (a record read from inside the section ends within 64 bytes
-    past it), so nothing is clipped. In place, in the scratch arrays."""
+def _ends(s: _Bytes, exact: bool, only_new: bool) -> npt.NDArray[np.intp]:
+    """Where a record that started at each byte of the section would end (with
+    `only_new`, if it were NEW). Every index stays within the padding (a record read from
+    inside the section ends within 64 bytes past it), so nothing is clipped. In place, in
+    the scratch arrays."""
     n = s.size
     after, after2 = s.after[:n], s.after2
     flags = s.b[after]
@@ -132,12 +134,15 @@ def _ends(s: _Bytes, exact: bool) -> npt.NDArray[np.intp]:
     else:
         np.take(after2, q, out=t)
         np.take(after2, t, out=q)
-    np.add(q, 12, out=q, where=(flags & SAME_MOTION) == 0)
-    np.add(q, 8, out=q, where=(flags & SAME_LOOK) == 0)
-    q += 8
+    skipped = ((flags & SAME_MOTION) == 0).view(np.uint8) * np.uint8(12)
+    skipped += ((flags & SAME_LOOK) == 0).view(np.uint8) * np.uint8(8)
+    skipped += np.uint8(8)
+    q += skipped
     np.take(s.after, q, out=t)
     t += 4
     ends = t
+    if only_new:
+        return ends
     # An update: a position, a velocity.
     u = s.scratch.get("u", n)
     np.copyto(u, p)
@@ -149,27 +154,43 @@ def _ends(s: _Bytes, exact: bool) -> npt.NDArray[np.intp]:
     return ends
 
 
-def read(section: memoryview, count: int, exact: bool, scratch: Scratch) -> ParticleRecords:
-    """Reads `count` records filling all of `section`; `exact` in a resync key frame."""
-    s = _Bytes(section, scratch)
-    if count > s.size // 2:
-        raise DecodeError(f"{count} particle records in {s.size} bytes")
-    starts_list = [0] * count
-    if count:
-        ends = memoryview(_ends(s, exact))
-        at = 0
-        try:
-            for k in range(count):
-                starts_list[k] = at
-                at = ends[at]
-        except IndexError:
-            raise DecodeError("particle records cut short") from None
-    else:
-        at = 0
+def _starts(s: _Bytes, count: int, exact: bool, only_new: bool) -> list[int]:
+    """Where each of `count` records starts, followed from byte 0 (empty when they do not
+    fill the section exactly)."""
+    starts = [0] * count
+    ends = memoryview(_ends(s, exact, only_new))
+    at = 0
+    try:
+        for k in range(count):
+            starts[k] = at
+            at = ends[at]
+    except IndexError:
+        raise DecodeError("particle records cut short") from None
     if at > s.size:
         raise DecodeError("particle records cut short")
     if at < s.size:
         raise DecodeError(f"{s.size - at} bytes left over")
+    return starts
+
+
+def read(section: memoryview, count: int, exact: bool, key: bool, scratch: Scratch) -> ParticleRecords:
+    """Reads `count` records filling all of `section`; `exact` in a resync key frame,
+    `key` in any key frame."""
+    s = _Bytes(section, scratch)
+    if count > s.size // 2:
+        raise DecodeError(f"{count} particle records in {s.size} bytes")
+    # A key frame's records are all NEW: that alone is followed first (checked below).
+    starts_list: list[int] = []
+    if key and count:
+        try:
+            starts_list = _starts(s, count, exact, only_new=True)
+            heads = s.b[s.after[np.array(starts_list, dtype=np.intp)]]
+            if ((heads & (NEW | REMOVED)) != NEW).any():
+                starts_list = []
+        except DecodeError:
+            starts_list = []
+    if count and not starts_list:
+        starts_list = _starts(s, count, exact, only_new=False)
     starts = np.array(starts_list, dtype=np.int64)
     gaps = s.varints(starts).astype(np.int64)
     if count > 1 and not gaps[1:].all():
