@@ -102,7 +102,7 @@ def row(what: str, times: list[float], held: list[int]) -> str:
         return f"| {what} | 0 | | | | | |"
     return (
         f"| {what} | {len(times)} | {min(held)}-{max(held)} | {statistics.median(times):.2f} | "
-        f"{statistics.fmean(times):.2f} | {max(times):.2f} | {1000 / statistics.fmean(times):.0f} |"
+        f"{statistics.fmean(times):.2f} | {max(times):.2f} | {1000 / statistics.fmean(times):.3g} |"
     )
 
 
