@@ -4,6 +4,7 @@ reader both decoders share."""
 from __future__ import annotations
 
 import struct
+from typing import Any
 
 from .errors import DecodeError
 
@@ -69,7 +70,7 @@ class Reader:
         self.at += n
         return chunk
 
-    def unpack(self, fmt: str) -> tuple:
+    def unpack(self, fmt: str) -> tuple[Any, ...]:
         return struct.unpack(fmt, self.take(struct.calcsize(fmt)))
 
     def varint(self) -> int:

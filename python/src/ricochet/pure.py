@@ -168,15 +168,15 @@ class FrameDecoder:
         # Key frames dropped because the next delta followed the state before them, and
         # that state until a delta confirms the key frame (as the Rust decoder).
         self.dropped_key_frames = 0
-        self.before: tuple | None = None
+        self.before: tuple[Any, ...] | None = None
 
     def _no_particles(self) -> Any:
         return {}
 
-    def _state(self) -> tuple:
+    def _state(self) -> tuple[Any, ...]:
         return (self.bodies, self.particles, self.emitters, self.frame, self.time, self.dt, self.stats)
 
-    def _restore(self, state: tuple) -> None:
+    def _restore(self, state: tuple[Any, ...]) -> None:
         self.bodies, self.particles, self.emitters, self.frame, self.time, self.dt, self.stats = state
 
     def apply(self, data: bytes) -> int:

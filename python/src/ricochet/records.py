@@ -9,6 +9,7 @@ every field is gathered at once from the records' starts."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -158,7 +159,7 @@ def _starts(s: _Bytes, count: int, exact: bool, only_new: bool) -> list[int]:
     """Where each of `count` records starts, followed from byte 0 (empty when they do not
     fill the section exactly)."""
     starts = [0] * count
-    ends = memoryview(_ends(s, exact, only_new))
+    ends = memoryview(_ends(s, exact, only_new))  # type: ignore[arg-type]
     at = 0
     try:
         for k in range(count):
@@ -264,7 +265,7 @@ def read(section: memoryview, count: int, exact: bool, key: bool, scratch: Scrat
     )
 
 
-def _carried(values: npt.NDArray, has: npt.NDArray[np.bool_], ids: I64, what: str) -> npt.NDArray:
+def _carried(values: npt.NDArray[Any], has: npt.NDArray[np.bool_], ids: I64, what: str) -> npt.NDArray[Any]:
     """Each NEW record's `values`, or those of the last NEW record before it that carried
     them."""
     if has.all():

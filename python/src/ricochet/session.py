@@ -159,6 +159,8 @@ class Server:
             sent = time.monotonic()
             for reply in self.replies(key, timeout, payload, sender):
                 sample = reply.ok if reply.ok is not None else reply.err
+                if sample is None:
+                    continue
                 answer: dict[str, Any] = json.loads(bytes(sample.payload.to_bytes()))
                 return answer
             if attempt < attempts:

@@ -98,10 +98,10 @@ class World:
                 time.sleep(0.1)
                 held = servers(session, world, max(0.1, timeout - (time.monotonic() - began)))
         except BaseException:
-            session.close()
+            session.close()  # type: ignore[no-untyped-call]
             raise
         if not held:
-            session.close()
+            session.close()  # type: ignore[no-untyped-call]
             where = ", ".join(endpoints) or config or "tcp/127.0.0.1:7447"
             raise ConnectionFailed(
                 f"no server of world {world!r} seen through {where} in "
