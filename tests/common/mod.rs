@@ -8,6 +8,7 @@ use std::process::{Child, Command as Process, Output, Stdio};
 use std::time::{Duration, Instant};
 
 pub mod python;
+#[allow(unused_imports)]
 pub use python::python;
 
 use ricochet_protocol::client::Client;
