@@ -195,6 +195,26 @@ fn frames_arrays_are_the_servers_dump_within_the_stated_bounds() {
     assert!(particles > 0, "no particle compared");
 }
 
+/// Every command the protocol knows is named by the package, and no other: `send`
+/// refuses a name outside `ricochet.COMMANDS` before sending it.
+#[test]
+fn the_package_names_every_command_of_the_protocol() {
+    use ricochet_protocol::command::{Action, SERVER_COMMANDS};
+    let out = ok(&run_code(
+        "import json, ricochet; print(json.dumps(list(ricochet.COMMANDS)))",
+        &[],
+    ));
+    let mut python: Vec<String> = serde_json::from_str(out.trim()).unwrap();
+    let mut rust: Vec<String> = SERVER_COMMANDS
+        .iter()
+        .chain(Action::NAMES)
+        .map(|s| s.to_string())
+        .collect();
+    python.sort();
+    rust.sort();
+    assert_eq!(python, rust);
+}
+
 /// The code block under README.md's `### Quick start: Python as a library`.
 fn readme_quick_start(readme: &str) -> Option<String> {
     let section = readme
