@@ -7,6 +7,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Output, Stdio};
 use std::time::{Duration, Instant};
 
+pub mod python;
+#[allow(unused_imports)]
+pub use python::python;
+
 use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, ServerCommand};
 use ricochet_protocol::net::{Mode, Network};

@@ -399,9 +399,15 @@ pub struct SimulateArgs {
     /// per dynamic body and per particle.
     #[arg(long)]
     pub wire_stats: bool,
-    /// With --wire-stats: a key frame every this many frames, as `run` would send.
+    /// With --wire-stats or --frames: a key frame every this many frames, as `run`
+    /// would send.
     #[arg(long, default_value_t = 60)]
     pub keyframe_interval: u64,
+    /// Write the statics snapshot and every frame's bytes as `run` would publish them to
+    /// this file, each as a u32 little-endian length then the payload (what
+    /// `ricochet_client.py decode` and python/bench/decode.py read).
+    #[arg(long, value_name = "FILE")]
+    pub frames: Option<PathBuf>,
 }
 
 /// Which claimed sender ids keep buckets of their own (`--sender-ids`).
