@@ -300,36 +300,48 @@ const OWN_TARGETS: [&str; 6] = [
 /// Log levels from quietest to loudest, as tracing's filters spell them.
 const LEVELS: [&str; 6] = ["off", "error", "warn", "info", "debug", "trace"];
 
-fn moved(level: &str, by: i32) -> Result<&'static str> {
-    let at = LEVELS
+fn rank(level: &str) -> Result<usize> {
+    LEVELS
         .iter()
         .position(|l| l.eq_ignore_ascii_case(level))
-        .ok_or_else(|| anyhow!("`{level}` is not a log level"))?;
-    Ok(LEVELS[(at as i32 + by).clamp(0, LEVELS.len() as i32 - 1) as usize])
+        .ok_or_else(|| anyhow!("`{level}` is not a log level"))
 }
 
-/// The filter `default_filter` (`"LEVEL,target=LEVEL,..."`) becomes under `shift`: below
-/// 0 every level goes down by it; above 0 Ricochet's own targets go up by it, and other
-/// crates' by one less.
+/// The filter `default_filter` (`"LEVEL,target=LEVEL,..."`) becomes under `shift`
+/// (`-v` counts up, `-q` down): -v logs Ricochet's own targets at debug, -vv at trace and
+/// every other crate at debug; -q caps every level at warn, -qq at error, -qqq at off.
 pub fn shifted_filter(default_filter: &str, shift: i32) -> Result<String> {
-    if shift == 0 {
-        return Ok(default_filter.to_string());
-    }
-    let others = if shift > 0 { shift - 1 } else { shift };
+    let info = rank("info")? as i32;
+    let at = LEVELS[(info + shift).clamp(0, LEVELS.len() as i32 - 1) as usize];
     let mut base = "info";
     let mut directives = Vec::new();
     for part in default_filter.split(',').filter(|p| !p.is_empty()) {
         match part.split_once('=') {
-            Some((target, level)) => {
-                directives.push(format!("{target}={}", moved(level, others)?))
-            }
+            Some((target, level)) => directives.push((target, level)),
             None => base = part,
         }
     }
-    let own = moved(base, shift)?;
-    let mut filter = vec![moved(base, others)?.to_string()];
-    filter.extend(directives);
-    filter.extend(OWN_TARGETS.iter().map(|t| format!("{t}={own}")));
+    rank(base)?;
+    let capped =
+        |level: &'static str| -> Result<&'static str> { Ok(LEVELS[rank(level)?.min(rank(at)?)]) };
+    let filter: Vec<String> = match shift {
+        0 => return Ok(default_filter.to_string()),
+        1 => std::iter::once(base.to_string())
+            .chain(directives.iter().map(|(t, l)| format!("{t}={l}")))
+            .chain(OWN_TARGETS.iter().map(|t| format!("{t}={at}")))
+            .collect(),
+        s if s > 1 => std::iter::once("debug".to_string())
+            .chain(OWN_TARGETS.iter().map(|t| format!("{t}={at}")))
+            .collect(),
+        _ => {
+            let mut filter = vec![LEVELS[rank(base)?.min(rank(at)?)].to_string()];
+            for (t, l) in &directives {
+                let level = LEVELS[rank(l)?];
+                filter.push(format!("{t}={}", capped(level)?));
+            }
+            filter
+        }
+    };
     Ok(filter.join(","))
 }
 
@@ -377,14 +389,24 @@ mod tests {
 
     #[test]
     fn verbosity_moves_the_default_filter() {
-        assert_eq!(shifted_filter("info,zenoh=warn", 0).unwrap(), "info,zenoh=warn");
-        let louder = shifted_filter("info,zenoh=warn", 1).unwrap();
-        assert!(louder.starts_with("info,zenoh=warn,ricochet=debug,"), "{louder}");
+        assert_eq!(
+            shifted_filter("info,zenoh=warn", 0).unwrap(),
+            "info,zenoh=warn"
+        );
+        let louder = shifted_filter("warn,zenoh=error", 1).unwrap();
+        assert!(
+            louder.starts_with("warn,zenoh=error,ricochet=debug,"),
+            "{louder}"
+        );
         assert!(louder.ends_with("ricochet_lab=debug"), "{louder}");
-        let quieter = shifted_filter("info,zenoh=warn", -1).unwrap();
-        assert!(quieter.starts_with("warn,zenoh=error,ricochet=warn,"), "{quieter}");
-        let silent = shifted_filter("warn,zenoh=error", -5).unwrap();
-        assert!(silent.starts_with("off,zenoh=off,ricochet=off"), "{silent}");
+        let loudest = shifted_filter("warn,zenoh=error", 2).unwrap();
+        assert!(loudest.starts_with("debug,ricochet=trace,"), "{loudest}");
+        let quieter = shifted_filter("info,zenoh=warn,re_chunk=error", -1).unwrap();
+        assert_eq!(quieter, "warn,zenoh=warn,re_chunk=error");
+        assert_eq!(
+            shifted_filter("warn,zenoh=error", -5).unwrap(),
+            "off,zenoh=off"
+        );
         assert!(shifted_filter("loud", 1).is_err());
         let flags = |args: &[&str]| {
             #[derive(Parser)]
@@ -397,7 +419,10 @@ mod tests {
         };
         assert_eq!(flags(&["-vv"]).unwrap(), 2);
         assert_eq!(flags(&["-q"]).unwrap(), -1);
-        assert!(flags(&["-v", "-q"]).is_err(), "-v and -q together are refused");
+        assert!(
+            flags(&["-v", "-q"]).is_err(),
+            "-v and -q together are refused"
+        );
     }
 
     #[test]
