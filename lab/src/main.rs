@@ -112,8 +112,8 @@ enum Command {
     /// DIR/tradeoff.png (time against error, the front in red). Use a release build.
     ///
     /// With --scene FILE: measures that scene (any scene, yours included) under each
-    /// candidate setting and under a converged reference, prints a table and with --out
-    /// writes DIR/<scene>.csv, DIR/<scene>.png and DIR/<scene>.md.
+    /// candidate setting and under a converged reference, prints a table and writes
+    /// DIR/<scene>.csv, DIR/<scene>.png and DIR/<scene>.md.
     Tradeoff {
         /// Where to write the report. Default: with one --scene FILE, a directory named
         /// after it in the current directory (`mine-tradeoff/` for mine.toml); otherwise
