@@ -13,7 +13,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use ricochet_lab::scene_tradeoff::ReportPages;
 use ricochet_lab::{bench, scene_tradeoff, soak, suite, tradeoff};
-use ricochet_protocol::net::init_tracing;
+use ricochet_protocol::net::{init_tracing, Verbosity};
 
 #[derive(Parser)]
 #[command(
@@ -26,6 +26,8 @@ struct Cli {
     /// beside this program).
     #[arg(long, global = true, value_name = "PATH")]
     server: Option<PathBuf>,
+    #[command(flatten)]
+    verbosity: Verbosity,
     #[command(subcommand)]
     command: Command,
 }
@@ -110,12 +112,14 @@ enum Command {
     /// DIR/tradeoff.png (time against error, the front in red). Use a release build.
     ///
     /// With --scene FILE: measures that scene (any scene, yours included) under each
-    /// candidate setting and under a converged reference, prints a table and with --out
-    /// writes DIR/<scene>.csv, DIR/<scene>.png and DIR/<scene>.md.
+    /// candidate setting and under a converged reference, prints a table and writes
+    /// DIR/<scene>.csv, DIR/<scene>.png and DIR/<scene>.md.
     Tradeoff {
-        /// Where to write the report.
-        #[arg(long, default_value = "tradeoff")]
-        out: PathBuf,
+        /// Where to write the report. Default: with one --scene FILE, a directory named
+        /// after it in the current directory (`mine-tradeoff/` for mine.toml); otherwise
+        /// `tradeoff/` there. (docs/tradeoff is written with `--out docs/tradeoff`.)
+        #[arg(long, value_name = "DIR")]
+        out: Option<PathBuf>,
         #[command(flatten)]
         scene: SceneTradeoffArgs,
     },
@@ -265,8 +269,8 @@ pub struct SceneTradeoffArgs {
 }
 
 fn main() -> Result<()> {
-    init_tracing("info");
     let cli = Cli::parse();
+    init_tracing("info", cli.verbosity);
     if let Some(server) = cli.server {
         ricochet_lab::use_server_binary(server);
     }
@@ -348,8 +352,12 @@ fn main() -> Result<()> {
             }
             Ok(())
         }
-        Command::Tradeoff { out, scene } if !scene.scene.is_empty() => scene_tradeoff(out, scene),
+        Command::Tradeoff { out, scene } if !scene.scene.is_empty() => {
+            let out = out.unwrap_or_else(|| tradeoff_dir(&scene.scene));
+            scene_tradeoff(out, scene)
+        }
         Command::Tradeoff { out, .. } => {
+            let out = out.unwrap_or_else(|| PathBuf::from("tradeoff"));
             let progress = bar("{prefix}: {bar:40} {pos}/{len} steps, eta {eta}: {msg}");
             let (cells, references) = tradeoff::run_all(&progress)?;
             progress.finish_and_clear();
@@ -460,6 +468,18 @@ fn list(files: &[PathBuf]) -> String {
         .map(|f| f.display().to_string())
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// Where `tradeoff --scene` writes without `--out`: `<scene>-tradeoff` in the current
+/// directory for one scene, `tradeoff` for several.
+fn tradeoff_dir(scenes: &[PathBuf]) -> PathBuf {
+    match scenes {
+        [one] => {
+            let stem = one.file_stem().unwrap_or(one.as_os_str());
+            PathBuf::from(format!("{}-tradeoff", stem.to_string_lossy()))
+        }
+        _ => PathBuf::from("tradeoff"),
+    }
 }
 
 /// `tradeoff --scene FILE...`: the trade measured on each scene, a page each, and an

@@ -6,7 +6,7 @@ use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};
 use ricochet_engine::world::Limits;
 use ricochet_protocol::keys::DEFAULT_WORLD;
-use ricochet_protocol::net::NetworkArgs;
+use ricochet_protocol::net::{NetworkArgs, Verbosity};
 use ricochet_server::host::budget::BudgetLimits;
 use ricochet_server::host::inbox::InboxLimits;
 use ricochet_server::host::journal::Checkpoints;
@@ -20,6 +20,8 @@ use ricochet_server::host::{HostOptions, DEFAULT_MAX_FRAME_BYTES};
     about = "Ricochet: a 2D physics and particle server"
 )]
 pub struct Cli {
+    #[command(flatten)]
+    pub verbosity: Verbosity,
     #[command(subcommand)]
     pub command: Command,
 }
