@@ -163,8 +163,6 @@ pub(super) struct Found {
     pub smallest: f64,
     /// Whether a contact may bounce (its pair's restitution is above 0).
     pub bouncing: bool,
-    /// Whether a contact with a static body overlaps beyond its slop.
-    pub deep_fixed: bool,
 }
 
 impl Default for Found {
@@ -174,7 +172,6 @@ impl Default for Found {
             deepest: 0.0,
             smallest: f64::INFINITY,
             bouncing: false,
-            deep_fixed: false,
         }
     }
 }
@@ -187,7 +184,6 @@ impl Found {
             deepest: self.deepest.max(other.deepest),
             smallest: self.smallest.min(other.smallest),
             bouncing: self.bouncing || other.bouncing,
-            deep_fixed: self.deep_fixed || other.deep_fixed,
         }
     }
 }
@@ -286,8 +282,6 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             );
             found.smallest = found.smallest.min(size);
             found.bouncing |= restitution > 0.0;
-            let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
-            found.deep_fixed |= fixed && -gap > slop;
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
@@ -304,7 +298,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 pseudo_impulse: 0.0,
                 pair: (first + k) as u32,
                 speculative,
-                fixed,
+                fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
                 bounced: false,
             });
         }
