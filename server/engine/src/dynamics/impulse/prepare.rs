@@ -251,16 +251,11 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             let bounce_speed = bounce_speed(accelerated, size);
             let bounces = restitution > 0.0 && impact < -bounce_speed;
             let slop = params.slop * size;
-            // A pair about to bounce may close its gap, however small: it bounces where it
-            // meets, not short of it.
-            let speculative = gap > SPECULATIVE_GAP * size || (bounces && gap > 0.0);
-            // Only contacts that hold (touching, or a hair apart: a pile built with gaps
-            // rests on them) and are no impact start from their last impulses (a pair
-            // about to bounce starts from none: the collision stage bounces it with the
-            // approach it has). Held only when touching, a 15-level pyramid built 1e-4 of
-            // a size apart started cold every frame and sank 3% of a box into the ground.
+            // Only contacts that touch, and are no impact, start from their last impulses
+            // (a pair about to bounce starts from none: the collision stage bounces it
+            // with the approach it has).
             let warm = params.warm_starting
-                && !speculative
+                && gap <= slop
                 && old_n.dot(n) > 0.99
                 && approach.abs() <= WARM_START_SPEED
                 && !bounces;
@@ -297,7 +292,9 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 tangent_impulse: if warm { jt } else { 0.0 },
                 pseudo_impulse: 0.0,
                 pair: (first + k) as u32,
-                speculative,
+                // A pair about to bounce may close its gap, however small: it bounces
+                // where it meets, not short of it.
+                speculative: gap > SPECULATIVE_GAP * size || (bounces && gap > 0.0),
                 fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
                 bounced: false,
             });
