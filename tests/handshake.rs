@@ -60,7 +60,9 @@ fn links_held_in_the_handshake_do_not_keep_an_honest_client_out() {
         }
     });
     let began = Instant::now();
-    while held.load(Ordering::Relaxed) < HELD {
+    // Under zenoh's defaults the server closes all but 100 at once: wait until the test
+    // has opened as many as it holds (and held what the server let it).
+    while opened.load(Ordering::Relaxed) < HELD {
         assert!(
             began.elapsed() < Duration::from_secs(20),
             "the test could not open {HELD} links"
@@ -93,9 +95,10 @@ fn links_held_in_the_handshake_do_not_keep_an_honest_client_out() {
     stop.store(true, Ordering::Relaxed);
     holder.join().unwrap();
     let opened = opened.load(Ordering::Relaxed);
+    let held = held.load(Ordering::Relaxed);
     eprintln!(
-        "{answered} of {HONEST} honest commands answered (ms each: {times:?}) while {HELD} \
-         links were held in the handshake ({opened} opened in all)"
+        "{answered} of {HONEST} honest commands answered (ms each: {times:?}) while the test \
+         held {held} links in the handshake ({opened} opened in all)"
     );
     assert_eq!(
         answered, HONEST,
