@@ -236,7 +236,7 @@ fn only_authorised_peers_act_through_the_secured_router() {
     assert!(reply.ok && !reply.ids.is_empty(), "minions left: {reply:?}");
 
     // The Python client reads the same configuration files.
-    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    let python = python();
     let script = root().join("assets/scripts/ricochet_client.py");
     let py = |role: &str| {
         let file = config(&format!("{role}.json5"));

@@ -173,7 +173,7 @@ fn hundreds_of_spare_tokens_do_not_hold_up_a_client() {
         Err(e) => panic!("the client was held up by the tokens: {e}"),
     }
     // The Python client too, within a bound.
-    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    let python = python();
     let mut child = Process::new(&python)
         .arg(root().join("assets/scripts/ricochet_client.py"))
         .args(["--world", "crowded", "--connect", &server.endpoint])

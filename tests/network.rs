@@ -307,14 +307,14 @@ fn a_server_and_a_client_meet_through_a_router() {
 
 #[test]
 fn the_python_client_sends_commands_and_decodes_frames() {
-    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    let python = python();
     let probe = Process::new(&python)
         .args(["-c", "import zenoh"])
         .output()
         .expect("python3 runs");
     assert!(
         probe.status.success(),
-        "the Python client needs `pip install eclipse-zenoh==1.10.2` (.ci/run installs it)"
+        "the Python client needs numpy and eclipse-zenoh: `bash .ci/install` puts them in its virtual environment"
     );
     let server = Server::start("emitters.toml", "python", &[]);
     resume(&server.client());

@@ -138,7 +138,7 @@ time.sleep(120)
 
 /// Starts the attacker in its namespace and returns it with how many sessions it holds.
 fn attack(ns: &Namespaces) -> (Running, usize) {
-    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    let python = python().display().to_string();
     let mut child = Namespaces::exec(&ns.attacker, &python)
         .args([
             "-c",

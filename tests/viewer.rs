@@ -63,7 +63,7 @@ fn artifacts() -> PathBuf {
 }
 
 fn read_rrd(path: &Path) -> Value {
-    let out = Process::new("python3")
+    let out = Process::new(python())
         .arg(root().join("tests/read_rrd.py"))
         .arg(path)
         .output()

@@ -210,3 +210,58 @@ fn profile_times_every_stage_of_a_scene_and_writes_its_table() {
     assert!(particles[0] == 0.0 && particles[1] > 0.0, "{text}");
     assert!(passes[1] == 0.0, "{text}");
 }
+
+#[test]
+fn tradeoff_writes_beside_the_user_not_into_docs() {
+    let dir = temp_dir();
+    std::fs::write(
+        dir.path().join("mine.toml"),
+        r#"[[body]]
+id = "ground"
+shape = "rect"
+size = [20, 1]
+pos = [0, 0]
+mass = 0
+
+[[body]]
+id = "ball"
+group = "balls"
+shape = "circle"
+radius = 0.5
+pos = [0, 3]
+mass = 1
+
+[[interact]]
+a = "balls"
+b = "default"
+"#,
+    )
+    .unwrap();
+    let tradeoff = |out: Option<&str>| {
+        let mut command = Command::new(bin("ricochet-lab"));
+        command
+            .current_dir(dir.path())
+            .args(["tradeoff", "--steps", "30", "--reference-budget", "30"])
+            .args(["--candidate", "solver=impulses", "--scene", "mine.toml"])
+            .env("RUST_LOG", "warn");
+        if let Some(out) = out {
+            command.args(["--out", out]);
+        }
+        let out = command.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    // No --out: a directory named after the scene, where the command ran.
+    tradeoff(None);
+    for file in ["mine.csv", "mine.png", "mine.md"] {
+        let path = dir.path().join("mine-tradeoff").join(file);
+        assert!(path.is_file(), "{} not written", path.display());
+    }
+    assert!(!dir.path().join("docs").exists() && !dir.path().join("tradeoff").exists());
+    // --out: where asked.
+    tradeoff(Some("reports/today"));
+    assert!(dir.path().join("reports/today/mine.csv").is_file());
+}

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 pub type Point = [f64; 2];
 
 /// A direction of the hero's controls (the chapter's WASD keys).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Direction {
     Up,
@@ -23,7 +23,9 @@ pub enum Direction {
 }
 
 /// The shape of a spawned minion: the chapter's circle, or the bounds demo's rectangle.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(
+    Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum MinionShape {
     #[default]
@@ -33,7 +35,9 @@ pub enum MinionShape {
 
 /// One world action; the engine applies it between steps and refuses it, changing
 /// nothing, when an argument is out of range.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames)]
+#[derive(
+    Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames, schemars::JsonSchema,
+)]
 #[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
 #[strum(serialize_all = "snake_case")]
 pub enum Action {
@@ -122,7 +126,7 @@ fn one() -> u32 {
 }
 
 /// A body's shape kind, as scenes and `spawn` name it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum ShapeKind {
     Rect,
@@ -133,7 +137,7 @@ pub enum ShapeKind {
 /// each optional but `shape` (and `size` for a rect, `radius` for a circle); the server
 /// fills in a scene's defaults (group `default`, mass 1, restitution 0.8, friction 0.3,
 /// a fresh id) and checks every number.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -15,7 +15,9 @@ use crate::text::short;
 pub use crate::action::{Action, Direction, MinionShape, Point};
 
 /// Controls of the server's clock and world, besides the world actions.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames)]
+#[derive(
+    Clone, Debug, PartialEq, Serialize, Deserialize, strum::VariantNames, schemars::JsonSchema,
+)]
 #[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
 #[strum(serialize_all = "snake_case")]
 pub enum ServerCommand {

@@ -19,6 +19,7 @@ pub mod command;
 pub mod dump;
 pub mod frame;
 pub mod keys;
+pub mod reference;
 pub mod text;
 
 #[cfg(feature = "client")]

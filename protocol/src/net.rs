@@ -289,19 +289,108 @@ impl SelfDoc {
     }
 }
 
-/// Logs to standard error, filtered by `RUST_LOG` or else by `default_filter`
-/// (e.g. `"info,zenoh=warn"`). Call once, first thing in `main`.
-pub fn init_tracing(default_filter: &str) {
+/// How much a binary logs: `-v` for more, `-q` for less (global flags of every binary).
+#[derive(clap::Args, Clone, Copy, Debug, Default)]
+#[command(next_help_heading = "Logging")]
+pub struct Verbosity {
+    /// Log more: -v adds Ricochet's debug lines, -vv its trace lines and other crates'
+    /// debug lines. Overrides RUST_LOG.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, conflicts_with = "quiet")]
+    pub verbose: u8,
+    /// Log less: -q keeps warnings and errors, -qq errors only, -qqq nothing.
+    /// Overrides RUST_LOG.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub quiet: u8,
+}
+
+impl Verbosity {
+    /// Levels to move from the default: above 0 more, below 0 less.
+    fn shift(self) -> i32 {
+        i32::from(self.verbose) - i32::from(self.quiet)
+    }
+}
+
+/// The targets of Ricochet's own crates and binaries, which `-v` opens up.
+const OWN_TARGETS: [&str; 6] = [
+    "ricochet",
+    "ricochet_engine",
+    "ricochet_protocol",
+    "ricochet_server",
+    "ricochet_viewer",
+    "ricochet_lab",
+];
+
+/// Log levels from quietest to loudest, as tracing's filters spell them.
+const LEVELS: [&str; 6] = ["off", "error", "warn", "info", "debug", "trace"];
+
+fn rank(level: &str) -> Result<usize> {
+    LEVELS
+        .iter()
+        .position(|l| l.eq_ignore_ascii_case(level))
+        .ok_or_else(|| anyhow!("`{level}` is not a log level"))
+}
+
+/// The filter `default_filter` (`"LEVEL,target=LEVEL,..."`) becomes under `shift`
+/// (`-v` counts up, `-q` down): -v logs Ricochet's own targets at debug, -vv at trace and
+/// every other crate at debug; -q caps every level at warn, -qq at error, -qqq at off.
+pub fn shifted_filter(default_filter: &str, shift: i32) -> Result<String> {
+    let info = rank("info")? as i32;
+    let at = LEVELS[(info + shift).clamp(0, LEVELS.len() as i32 - 1) as usize];
+    let mut base = "info";
+    let mut directives = Vec::new();
+    for part in default_filter.split(',').filter(|p| !p.is_empty()) {
+        match part.split_once('=') {
+            Some((target, level)) => directives.push((target, level)),
+            None => base = part,
+        }
+    }
+    rank(base)?;
+    let capped =
+        |level: &'static str| -> Result<&'static str> { Ok(LEVELS[rank(level)?.min(rank(at)?)]) };
+    let filter: Vec<String> = match shift {
+        0 => return Ok(default_filter.to_string()),
+        1 => std::iter::once(base.to_string())
+            .chain(directives.iter().map(|(t, l)| format!("{t}={l}")))
+            .chain(OWN_TARGETS.iter().map(|t| format!("{t}={at}")))
+            .collect(),
+        s if s > 1 => std::iter::once("debug".to_string())
+            .chain(OWN_TARGETS.iter().map(|t| format!("{t}={at}")))
+            .collect(),
+        _ => {
+            let mut filter = vec![LEVELS[rank(base)?.min(rank(at)?)].to_string()];
+            for (t, l) in &directives {
+                let level = LEVELS[rank(l)?];
+                filter.push(format!("{t}={}", capped(level)?));
+            }
+            filter
+        }
+    };
+    Ok(filter.join(","))
+}
+
+/// Logs to standard error, filtered by `default_filter` (e.g. `"info,zenoh=warn"`) moved
+/// by `-v`/`-q`; with neither flag, `RUST_LOG` when it is set. Call once, first thing in
+/// `main`, with the flags parsed.
+pub fn init_tracing(default_filter: &str, verbosity: Verbosity) {
     use std::io::IsTerminal;
+    let filter = match verbosity.shift() {
+        0 => tracing_subscriber::EnvFilter::try_from_default_env()
+            .unwrap_or_else(|_| default_filter.into()),
+        shift => match shifted_filter(default_filter, shift) {
+            Ok(filter) => filter.into(),
+            // The defaults are the binaries' own constants; one that does not parse is a
+            // bug, said here rather than silencing every log.
+            Err(e) => panic!("default log filter `{default_filter}`: {e}"),
+        },
+    };
+    let described = filter.to_string();
     tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| default_filter.into()),
-        )
+        .with_env_filter(filter)
         .with_writer(std::io::stderr)
         // Colour only for a person at a terminal: a log file or a pipe gets plain text.
         .with_ansi(std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none())
         .init();
+    tracing::debug!(filter = %described, "logging");
 }
 
 #[cfg(test)]
@@ -319,6 +408,44 @@ mod tests {
         Flags::try_parse_from(std::iter::once("x").chain(args.iter().copied()))
             .unwrap_or_else(|e| panic!("{e}"))
             .net
+    }
+
+    #[test]
+    fn verbosity_moves_the_default_filter() {
+        assert_eq!(
+            shifted_filter("info,zenoh=warn", 0).unwrap(),
+            "info,zenoh=warn"
+        );
+        let louder = shifted_filter("warn,zenoh=error", 1).unwrap();
+        assert!(
+            louder.starts_with("warn,zenoh=error,ricochet=debug,"),
+            "{louder}"
+        );
+        assert!(louder.ends_with("ricochet_lab=debug"), "{louder}");
+        let loudest = shifted_filter("warn,zenoh=error", 2).unwrap();
+        assert!(loudest.starts_with("debug,ricochet=trace,"), "{loudest}");
+        let quieter = shifted_filter("info,zenoh=warn,re_chunk=error", -1).unwrap();
+        assert_eq!(quieter, "warn,zenoh=warn,re_chunk=error");
+        assert_eq!(
+            shifted_filter("warn,zenoh=error", -5).unwrap(),
+            "off,zenoh=off"
+        );
+        assert!(shifted_filter("loud", 1).is_err());
+        let flags = |args: &[&str]| {
+            #[derive(Parser)]
+            struct Flags {
+                #[command(flatten)]
+                verbosity: Verbosity,
+            }
+            Flags::try_parse_from(std::iter::once("x").chain(args.iter().copied()))
+                .map(|f| f.verbosity.shift())
+        };
+        assert_eq!(flags(&["-vv"]).unwrap(), 2);
+        assert_eq!(flags(&["-q"]).unwrap(), -1);
+        assert!(
+            flags(&["-v", "-q"]).is_err(),
+            "-v and -q together are refused"
+        );
     }
 
     #[test]

@@ -1,6 +1,9 @@
 //! The `ricochet` command line: malformed commands and flags are refused with a message
 //! naming what was wrong, before anything is sent (real processes, no server needed).
 
+#[path = "../../tests/common/python.rs"]
+mod python;
+
 use std::process::{Command, Output};
 
 fn ricochet(args: &[&str]) -> Output {
@@ -66,7 +69,7 @@ fn every_command_is_in_the_help_of_both_clients() {
         env!("CARGO_MANIFEST_DIR"),
         "/../assets/scripts/ricochet_client.py"
     );
-    let python = Command::new("python3")
+    let python = Command::new(python::python())
         .args([script, "--help"])
         .output()
         .expect("python3 runs");

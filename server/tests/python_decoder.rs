@@ -2,7 +2,9 @@
 //! reader of the layout written from its documentation, decodes what the Rust encoder
 //! writes to the same state, bit for bit: every body's position and velocity (which the
 //! receiver predicts frame by frame between records) and every particle's position, at
-//! every frame, from the first key frame and from a resync key frame taken mid-run.
+//! every frame, from the first key frame and from a resync key frame taken mid-run. The
+//! `ricochet` package's numpy decoder (`python/src/ricochet/decode.py`, `decode --numpy`)
+//! is held to the same.
 
 use std::io::Write;
 use std::path::Path;
@@ -12,6 +14,9 @@ use ricochet_engine::scene;
 use ricochet_protocol::frame::FrameDecoder;
 use ricochet_protocol::frame::FrameEncoder;
 use ricochet_server::wire::{encode_frame, statics_snapshot};
+
+#[path = "../../tests/common/python.rs"]
+mod python;
 
 fn root() -> &'static Path {
     Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
@@ -31,19 +36,19 @@ fn view(d: &FrameDecoder) -> serde_json::Value {
     serde_json::json!({"frame": d.frame, "bodies": bodies, "particles": particles})
 }
 
-/// The Python decoder's frames, with each particle's position as the f32 the Rust
-/// decoder gives.
-fn python_views(payloads: &[Vec<u8>]) -> Vec<serde_json::Value> {
+/// The Python decoder's frames (the plain one, or with `numpy` the package's numpy one),
+/// with each particle's position as the f32 the Rust decoder gives.
+fn python_views(payloads: &[Vec<u8>], numpy: bool) -> Vec<serde_json::Value> {
     let mut file = tempfile::NamedTempFile::new().unwrap();
     for p in payloads {
         file.write_all(&(p.len() as u32).to_le_bytes()).unwrap();
         file.write_all(p).unwrap();
     }
     file.flush().unwrap();
-    let python = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
-    let out = Command::new(python)
+    let out = Command::new(python::python())
         .arg(root().join("assets/scripts/ricochet_client.py"))
         .args(["decode", file.path().to_str().unwrap()])
+        .args(numpy.then_some("--numpy"))
         .output()
         .expect("python3 runs");
     assert!(
@@ -125,22 +130,40 @@ fn check(scene_file: &str, steps: u64, resync_at: u64, stride: u64) {
             }
         }
         assert_eq!(rust.dropped_key_frames, u64::from(n == 2), "{scene_file}");
-        let got = python_views(&payloads);
-        assert_eq!(got.len(), expected.len(), "{scene_file}: frames decoded");
-        for (g, e) in got.iter().zip(&expected) {
-            if g != e {
-                let first = |v: &serde_json::Value, k: &str, i: usize| v[k][i].clone();
-                let n = e["bodies"].as_array().unwrap().len();
-                let body = (0..n).find(|&i| first(g, "bodies", i) != first(e, "bodies", i));
-                let particle = (0..e["particles"].as_array().unwrap().len())
-                    .find(|&i| first(g, "particles", i) != first(e, "particles", i));
-                panic!(
-                    "{scene_file}: frame {} differs: body {body:?}: python {} rust {}; particle {particle:?}",
+        for numpy in [false, true] {
+            let got = python_views(&payloads, numpy);
+            compare(scene_file, numpy, &got, &expected);
+        }
+    }
+}
+
+/// Each Python frame against the Rust decoder's, naming the first body and particle that
+/// differ.
+fn compare(
+    scene_file: &str,
+    numpy: bool,
+    got: &[serde_json::Value],
+    expected: &[serde_json::Value],
+) {
+    let reader = if numpy { "numpy" } else { "python" };
+    assert_eq!(
+        got.len(),
+        expected.len(),
+        "{scene_file}: frames decoded by {reader}"
+    );
+    for (g, e) in got.iter().zip(expected) {
+        if g != e {
+            let first = |v: &serde_json::Value, k: &str, i: usize| v[k][i].clone();
+            let n = e["bodies"].as_array().unwrap().len();
+            let body = (0..n).find(|&i| first(g, "bodies", i) != first(e, "bodies", i));
+            let particle = (0..e["particles"].as_array().unwrap().len())
+                .find(|&i| first(g, "particles", i) != first(e, "particles", i));
+            panic!(
+                    "{scene_file}: frame {} differs: body {body:?}: {reader} {} rust {}; particle {particle:?}",
                     e["frame"],
                     body.map_or(serde_json::Value::Null, |i| first(g, "bodies", i)),
                     body.map_or(serde_json::Value::Null, |i| first(e, "bodies", i)),
                 );
-            }
         }
     }
 }

@@ -7,6 +7,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Output, Stdio};
 use std::time::{Duration, Instant};
 
+pub mod python;
+#[allow(unused_imports)]
+pub use python::python;
+
 use ricochet_protocol::client::Client;
 use ricochet_protocol::command::{Action, Command, ServerCommand};
 use ricochet_protocol::net::{Mode, Network};
@@ -257,4 +261,64 @@ pub fn flood_queries(
         }
     }
     (answered, sent_in)
+}
+
+/// The fenced code blocks of README.md's section `heading` (its `### ...` line), as
+/// (language, text), in order: what the quick-start tests run as written.
+pub fn readme_blocks(heading: &str) -> Vec<(String, String)> {
+    let readme = std::fs::read_to_string(root().join("README.md")).expect("README.md");
+    let start = readme
+        .lines()
+        .position(|l| l.trim_start_matches('#').trim() == heading && l.starts_with('#'))
+        .unwrap_or_else(|| panic!("README.md has no section `{heading}`"));
+    let mut blocks = Vec::new();
+    let mut open: Option<(String, String)> = None;
+    for line in readme.lines().skip(start + 1) {
+        match &mut open {
+            None if line.starts_with('#') => break,
+            None => {
+                if let Some(lang) = line.strip_prefix("```") {
+                    open = Some((lang.trim().to_string(), String::new()));
+                }
+            }
+            Some(_) if line.starts_with("```") => blocks.push(open.take().unwrap()),
+            Some((_, text)) => {
+                text.push_str(line);
+                text.push('\n');
+            }
+        }
+    }
+    blocks
+}
+
+/// A process group (a shell and everything it started), killed whole when dropped.
+pub struct Group(pub Child);
+
+impl Group {
+    /// Spawns `command` as the leader of a new process group.
+    pub fn spawn(command: &mut Process) -> Group {
+        use std::os::unix::process::CommandExt;
+        Group(
+            command
+                .process_group(0)
+                .spawn()
+                .expect("the process starts"),
+        )
+    }
+}
+
+impl Drop for Group {
+    fn drop(&mut self) {
+        let _ = sh(&["kill", "-KILL", "--", &format!("-{}", self.0.id())]);
+        let _ = self.0.wait();
+    }
+}
+
+/// `PATH` with the built binaries first, as the README's `export PATH=...` has it.
+pub fn path_with_binaries() -> std::ffi::OsString {
+    let mut dirs = vec![target_dir()];
+    dirs.extend(std::env::split_paths(
+        &std::env::var_os("PATH").unwrap_or_default(),
+    ));
+    std::env::join_paths(dirs).expect("PATH")
 }

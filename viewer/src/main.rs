@@ -12,6 +12,7 @@
 //! each (`world/<name>/...`, `stats/<plot>/<name>`, `events/<name>`), and the drift plots
 //! under `drift/`.
 
+mod advertise;
 mod arrange;
 mod between;
 mod blueprint;
@@ -29,7 +30,7 @@ use clap::{ArgGroup, Parser};
 use ricochet_protocol::client::Client;
 use ricochet_protocol::command::WorldInfo;
 use ricochet_protocol::keys::DEFAULT_WORLD;
-use ricochet_protocol::net::{init_tracing, NetworkArgs};
+use ricochet_protocol::net::{init_tracing, NetworkArgs, Verbosity};
 
 use crate::sink::{Place, WorldSink};
 use crate::watch::{DriftFeed, Pace};
@@ -56,6 +57,8 @@ struct Opts {
     /// server listens).
     #[command(flatten)]
     network: NetworkArgs,
+    #[command(flatten)]
+    verbosity: Verbosity,
 
     /// Serve Rerun's web viewer and its gRPC server on localhost and print the address
     /// (the default).
@@ -91,9 +94,14 @@ struct Opts {
     #[arg(long, default_value_t = 30.0, value_name = "SECS")]
     wait: f64,
 
-    /// Address the web viewer and gRPC server bind to (--web).
+    /// Address the web viewer and gRPC server bind to (--web): 0.0.0.0 serves every
+    /// interface, for a browser on another machine.
     #[arg(long, default_value = "127.0.0.1", value_name = "IP")]
     bind: String,
+    /// The host name or address the printed URL names, as another machine reaches this
+    /// one (--web). Default: the --bind address, or for 0.0.0.0 this machine's address.
+    #[arg(long, value_name = "HOST")]
+    advertise: Option<String>,
     /// Port of the web viewer's page (--web).
     #[arg(long, default_value_t = 9090)]
     web_port: u16,
@@ -175,7 +183,9 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(re_sdk::RecordingStre
                 opts.bind, opts.grpc_port
             )
         })?;
-    let grpc = format!("rerun+http://{}:{}/proxy", opts.bind, opts.grpc_port);
+    // The page is opened, and reads the gRPC server, at the advertised host.
+    let host = advertise::host(&opts.bind, opts.advertise.as_deref())?;
+    let grpc = format!("rerun+http://{host}:{}/proxy", opts.grpc_port);
     let server = re_sdk::serve_web_viewer(re_sdk::web_viewer::WebViewerConfig {
         bind_ip: opts.bind.clone(),
         web_port: opts.web_port.into(),
@@ -189,11 +199,14 @@ fn open_sink(opts: &Opts, app_id: &'static str) -> Result<(re_sdk::RecordingStre
             opts.bind, opts.web_port
         )
     })?;
-    let url = format!(
-        "{}/?url={}",
-        server.server_url().trim_end_matches('/'),
-        grpc.replace('+', "%2B")
-    );
+    // The port the page is served on (the one asked for, or the one picked for 0).
+    let served = server.server_url();
+    let web_port = served
+        .trim_end_matches('/')
+        .rsplit(':')
+        .next()
+        .unwrap_or_default();
+    let url = format!("http://{host}:{web_port}/?url={}", grpc.replace('+', "%2B"));
     println!("ricochet-viewer: open {url}");
     // Served until the process exits.
     server.detach();
@@ -360,8 +373,9 @@ fn join_worlds(opts: &Opts) -> Result<Vec<(Client, WorldInfo)>> {
 }
 
 fn main() {
-    init_tracing("info,zenoh=warn,re_chunk=error");
-    if let Err(e) = run(Opts::parse()) {
+    let opts = Opts::parse();
+    init_tracing("info,zenoh=warn,re_chunk=error", opts.verbosity);
+    if let Err(e) = run(opts) {
         eprintln!("ricochet-viewer: {e:#}");
         std::process::exit(1);
     }

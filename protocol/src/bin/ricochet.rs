@@ -13,7 +13,7 @@ use ricochet_protocol::client::{list_worlds, parse_event, Client};
 use ricochet_protocol::command::{parse_input_log, Command, ServerCommand, TimedAction};
 use ricochet_protocol::frame::peek_header;
 use ricochet_protocol::keys::DEFAULT_WORLD;
-use ricochet_protocol::net::{init_tracing, Network, NetworkArgs};
+use ricochet_protocol::net::{init_tracing, Network, NetworkArgs, Verbosity};
 use ricochet_protocol::text::short;
 
 #[derive(Parser)]
@@ -46,6 +46,8 @@ struct Cli {
     world: String,
     #[command(flatten)]
     network: NetworkArgs,
+    #[command(flatten)]
+    verbosity: Verbosity,
     /// How long to wait for a reply, in seconds.
     #[arg(long, global = true, default_value_t = 5.0)]
     timeout: f64,
@@ -127,8 +129,8 @@ const QUIET_BEFORE_ASKING: Duration = Duration::from_secs(2);
 fn main() {
     // zenoh's own warnings (a scouting delay, say) are not the user's business here; the
     // client says what failed itself.
-    init_tracing("warn,zenoh=error");
     let cli = Cli::parse();
+    init_tracing("warn,zenoh=error", cli.verbosity);
     match run(cli) {
         Ok(code) => std::process::exit(code),
         Err(e) => {

@@ -6,7 +6,7 @@ use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand};
 use ricochet_engine::world::Limits;
 use ricochet_protocol::keys::DEFAULT_WORLD;
-use ricochet_protocol::net::NetworkArgs;
+use ricochet_protocol::net::{NetworkArgs, Verbosity};
 use ricochet_server::host::budget::BudgetLimits;
 use ricochet_server::host::inbox::InboxLimits;
 use ricochet_server::host::journal::Checkpoints;
@@ -20,6 +20,8 @@ use ricochet_server::host::{HostOptions, DEFAULT_MAX_FRAME_BYTES};
     about = "Ricochet: a 2D physics and particle server"
 )]
 pub struct Cli {
+    #[command(flatten)]
+    pub verbosity: Verbosity,
     #[command(subcommand)]
     pub command: Command,
 }
@@ -399,9 +401,15 @@ pub struct SimulateArgs {
     /// per dynamic body and per particle.
     #[arg(long)]
     pub wire_stats: bool,
-    /// With --wire-stats: a key frame every this many frames, as `run` would send.
+    /// With --wire-stats or --frames: a key frame every this many frames, as `run`
+    /// would send.
     #[arg(long, default_value_t = 60)]
     pub keyframe_interval: u64,
+    /// Write the statics snapshot and every frame's bytes as `run` would publish them to
+    /// this file, each as a u32 little-endian length then the payload (what
+    /// `ricochet_client.py decode` and python/bench/decode.py read).
+    #[arg(long, value_name = "FILE")]
+    pub frames: Option<PathBuf>,
 }
 
 /// Which claimed sender ids keep buckets of their own (`--sender-ids`).

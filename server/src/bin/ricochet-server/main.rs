@@ -21,8 +21,9 @@ use args::{Cli, Command};
 /// Errors are printed as a user reads them (the chain of causes on one line), never as a
 /// debug dump with a backtrace, whatever `RUST_BACKTRACE` says.
 fn main() -> ExitCode {
-    init_tracing("info");
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    init_tracing("info", cli.verbosity);
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("ricochet-server: {e:#}");

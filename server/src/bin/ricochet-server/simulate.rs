@@ -27,6 +27,7 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         wire_stats,
         keyframe_interval,
         hashes: hashes_path,
+        frames: frames_path,
     } = args;
     let limits = how.limits(Limits::default())?;
     let mut overrides = how.set;
@@ -105,6 +106,18 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} eta {eta}")
             .expect("the template is valid"),
     );
+    let mut frames_out = match frames_path.as_deref() {
+        None => None,
+        Some(p) => {
+            let file =
+                File::create(p).with_context(|| format!("cannot create frames {}", p.display()))?;
+            Some(Payloads::start(
+                BufWriter::new(file),
+                &world,
+                keyframe_interval,
+            )?)
+        }
+    };
     let mut wire = wire_stats.map(|interval| WireStats::new(&world, interval));
     let mut replay = Replay::new(&inputs);
     let mut refused = 0usize;
@@ -134,6 +147,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         if let Some(w) = wire.as_mut() {
             w.frame(&world);
         }
+        if let Some(f) = frames_out.as_mut() {
+            f.frame(&world)?;
+        }
         progress.inc(1);
     }
     progress.finish_and_clear();
@@ -145,6 +161,9 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
     }
     if let Some(mut out) = hashes_out {
         out.flush()?;
+    }
+    if let Some(f) = frames_out {
+        f.out.into_inner()?.sync_all()?;
     }
     let stats = world.stats();
     let per_step = if steps > 0 {
@@ -170,6 +189,36 @@ pub fn simulate(args: SimulateArgs) -> Result<()> {
         eprintln!("{}", w.summary());
     }
     Ok(())
+}
+
+/// `--frames`: the payloads `run` would publish, each as a u32 little-endian length then
+/// its bytes: the statics snapshot, then the frame of the start and of every step.
+struct Payloads {
+    out: BufWriter<File>,
+    encoder: ricochet_protocol::frame::FrameEncoder,
+}
+
+impl Payloads {
+    fn start(out: BufWriter<File>, world: &World, keyframe_interval: u64) -> Result<Self> {
+        let mut payloads = Payloads {
+            out,
+            encoder: ricochet_protocol::frame::FrameEncoder::new(keyframe_interval),
+        };
+        payloads.put(&wire::statics_snapshot(world))?;
+        payloads.frame(world)?;
+        Ok(payloads)
+    }
+
+    fn frame(&mut self, world: &World) -> Result<()> {
+        let bytes = wire::encode_frame(&mut self.encoder, world, 0.0, 0);
+        self.put(&bytes)
+    }
+
+    fn put(&mut self, bytes: &[u8]) -> Result<()> {
+        self.out.write_all(&(bytes.len() as u32).to_le_bytes())?;
+        self.out.write_all(bytes)?;
+        Ok(())
+    }
 }
 
 /// What `--steps 0` says of a scene's groups (the scene refuses an interaction naming a
