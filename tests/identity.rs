@@ -205,7 +205,28 @@ fn hundreds_of_spare_tokens_do_not_hold_up_a_client() {
 fn made_up_sender_ids_share_one_bucket() {
     let server = Server::start("emitters.toml", "claimed", &[]);
     server.wait_up();
-    let flooder = server.client();
+    made_up_ids_flood_at_one_senders_rate(&server, &server.client());
+}
+
+/// The same flood through a session in router mode connected to the server: a process may
+/// open one at will, so it does not make the server take claims as they are (before, 20
+/// made-up ids were answered at 20 times one sender's rate through it).
+#[test]
+fn made_up_sender_ids_through_a_router_mode_session_share_one_bucket() {
+    let server = Server::start("emitters.toml", "routed", &[]);
+    server.wait_up();
+    let router = Client::open(
+        &Network::client(Mode::Router, vec![server.endpoint.clone()]),
+        "routed",
+    )
+    .expect("a router-mode session");
+    wait_answered(&router, "the world through a router-mode session");
+    made_up_ids_flood_at_one_senders_rate(&server, &router);
+}
+
+/// `flooder` sends 600 snapshot queries under 20 made-up ids: at most one sender's rate is
+/// answered, and a connected client is still answered after.
+fn made_up_ids_flood_at_one_senders_rate(server: &Server, flooder: &Client) {
     let key = flooder.keys().snapshot.clone();
     // Ids of sessions that exist but are connected to nothing: a made-up claim.
     let (made_up, _isolated): (Vec<_>, Vec<_>) = (0..20)
@@ -224,7 +245,7 @@ fn made_up_sender_ids_share_one_bucket() {
             (id, session)
         })
         .unzip();
-    let (answered, sent_in) = flood_queries(&flooder, &key, 600, |k| {
+    let (answered, sent_in) = flood_queries(flooder, &key, 600, |k| {
         Some(zenoh::sample::SourceInfo::new(made_up[k as usize % 20], k))
     });
     // One sender's bucket: 100 at once, 50 a second.

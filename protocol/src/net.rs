@@ -109,6 +109,16 @@ pub const MAX_MESSAGE_BYTES: usize = 64 << 20;
 /// Sessions a server or router takes at most, in all (zenoh's default is 1000).
 pub const MAX_SESSIONS: usize = 256;
 
+/// Links a listening process keeps waiting in zenoh's handshake at once (zenoh's default
+/// is 100): past it, a new link is closed at once. A process holding 300 links that never
+/// send the handshake kept every honest session out under the default.
+pub const ACCEPT_PENDING: usize = 1024;
+
+/// How long a link may take to finish zenoh's handshake, in milliseconds (zenoh's default
+/// is 10 000): an honest one on loopback takes a few, over TLS a few round trips. A link
+/// that never sends it holds a place in [`ACCEPT_PENDING`] this long.
+pub const ACCEPT_TIMEOUT_MS: u64 = 2_000;
+
 /// Where and how a session connects.
 #[derive(Clone, Debug, Default)]
 pub struct Network {
@@ -213,6 +223,19 @@ impl Network {
                 &mut config,
                 "transport/unicast/max_sessions",
                 serde_json::json!(MAX_SESSIONS),
+            )?;
+            // Links held in the handshake: a bound high enough that one process must open
+            // more than ACCEPT_PENDING links every ACCEPT_TIMEOUT_MS to keep a new session
+            // out, and a timeout short enough that what it holds is soon let go.
+            set(
+                &mut config,
+                "transport/unicast/accept_pending",
+                serde_json::json!(ACCEPT_PENDING),
+            )?;
+            set(
+                &mut config,
+                "transport/unicast/accept_timeout",
+                serde_json::json!(ACCEPT_TIMEOUT_MS),
             )?;
         }
         Ok(config)

@@ -9,8 +9,11 @@
 //! shares the anonymous sender's: claiming ids no longer multiplies buckets.
 //!
 //! Through a router (the secured deployment), clients are not connected to the server, and
-//! their ids cannot be checked here: while a router is connected, claims are taken as they
-//! are (the router's access control decides who may send at all).
+//! their ids cannot be checked here: a server in client mode (its one transport is to the
+//! router it dialled) takes claims as they are, and the router's access control decides
+//! who may send at all. A server that listens takes a router-mode session that connects
+//! to it as one more peer: any process may open one, and trusting every claim while one
+//! was connected let a single session take twenty senders' buckets.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -35,6 +38,9 @@ struct Known {
     direct: HashMap<String, usize>,
     /// Routers connected: through them, claims cannot be checked.
     routers: usize,
+    /// Claims through a connected router are taken as they are: the server is in client
+    /// mode, and the only router it has is the one it dialled.
+    through_routers: bool,
 }
 
 impl Peers {
@@ -44,9 +50,17 @@ impl Peers {
     }
 
     /// Follows `session`'s transports (those open now, then each opening and closing).
-    /// The listener must be kept for as long as the peers are asked.
-    pub fn watch(session: &Session) -> zenoh::Result<(Peers, TransportEventsListener<()>)> {
-        let known: Arc<Mutex<Known>> = Arc::default();
+    /// The listener must be kept for as long as the peers are asked. `through_routers`:
+    /// the session is in client mode, so a connected router is the one it dialled and
+    /// claims through it are taken as they are.
+    pub fn watch(
+        session: &Session,
+        through_routers: bool,
+    ) -> zenoh::Result<(Peers, TransportEventsListener<()>)> {
+        let known = Arc::new(Mutex::new(Known {
+            through_routers,
+            ..Known::default()
+        }));
         let listener = session
             .info()
             .transport_events_listener()
@@ -87,7 +101,7 @@ impl Peers {
         };
         let known = known.lock().unwrap_or_else(|e| e.into_inner());
         match claimed {
-            _ if known.routers > 0 => claimed.clone(),
+            _ if known.through_routers && known.routers > 0 => claimed.clone(),
             Some(zid) if known.direct.contains_key(zid) => claimed.clone(),
             _ => None,
         }

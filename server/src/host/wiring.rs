@@ -126,7 +126,11 @@ impl Wiring {
         let (peers, transports) = if opts.trust_claimed_senders {
             (peers::Peers::trusting(), None)
         } else {
-            let (peers, listener) = peers::Peers::watch(session).map_err(z)?;
+            // In client mode the server's only transport is to the router it dialled.
+            let client_mode = server_config(opts)?
+                .get_json("mode")
+                .is_ok_and(|mode| mode.contains("client"));
+            let (peers, listener) = peers::Peers::watch(session, client_mode).map_err(z)?;
             (peers, Some(listener))
         };
         let inbox = Arc::new(Inbox::new(
