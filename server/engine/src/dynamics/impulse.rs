@@ -421,6 +421,8 @@ pub fn solve_frame(
                 h,
                 converged,
                 last_step,
+                found.deep_fixed,
+                gain,
                 &mut report,
             );
             clock.lap(times.as_mut().map(|t| &mut t.passes));

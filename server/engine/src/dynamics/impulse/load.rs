@@ -18,7 +18,7 @@ use super::{Contact, SolverBody};
 use crate::dynamics::body::Body;
 
 /// Contacts whose normal is within about 45 degrees of the vertical carry load.
-const SUPPORT_COS: f64 = 0.7;
+pub(super) const SUPPORT_COS: f64 = 0.7;
 
 /// Sets the normal impulse of every touching contact that holds a body up to its share of
 /// the load over one sub-step `h`; other contacts are left as they are. `up` points

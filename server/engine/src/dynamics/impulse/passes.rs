@@ -6,6 +6,7 @@
 use glam::DVec2;
 
 use super::blocks::{self, Bodies};
+use super::load::SUPPORT_COS;
 use super::team::Team;
 use super::{Bias, Biases, Contact, ImpulseParams, ImpulseReport, Pair, SolverBody};
 use crate::dynamics::body::Body;
@@ -36,6 +37,9 @@ pub(super) fn warm_start(team: &Team, sb: &mut [SolverBody], buckets: &mut [Vec<
 /// The biased passes: `iterations` of them, the position bias pushing touching contacts
 /// apart (into pseudo-velocities with split impulses), then up to `adaptive_iterations`
 /// more while the last one changed a contact's normal velocity by more than `converged`.
+/// With `deep_fixed` (a contact with a static body overlaps beyond its slop), each pass is
+/// followed by the push-out of the contacts with static bodies ([`static_push_out`];
+/// `gain` is what each mover gains per second).
 /// The frame's last pass measures the residual when no relax pass follows it.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve(
@@ -47,6 +51,8 @@ pub(super) fn solve(
     h: f64,
     converged: f64,
     last_step: bool,
+    deep_fixed: bool,
+    gain: &[DVec2],
     report: &mut ImpulseReport,
 ) {
     let adaptive = params.adaptive_iterations > 0;
@@ -66,6 +72,9 @@ pub(super) fn solve(
         );
         let measure = k + 1 >= params.iterations && (adaptive || residual);
         let change = velocity_pass(team, sb, buckets, args, measure);
+        if params.split_impulses && deep_fixed {
+            static_push_out(team, sb, buckets, gain, bias.push_fixed.rate);
+        }
         k += 1;
         if k < params.iterations {
             continue;
@@ -231,13 +240,7 @@ fn solve_contact<const MEASURE: bool>(
             let pen = (-gap - c.slop).max(0.0);
             if pen > 0.0 && split {
                 // The push goes to the pseudo-velocities; the velocity only holds.
-                let target = (bias.rate * pen).min(c.max_push);
-                let pv = (bb.pseudo - ba.pseudo).dot(c.normal);
-                let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
-                let p = c.normal * (total - c.pseudo_impulse);
-                c.pseudo_impulse = total;
-                sb.update(a, |s| s.pseudo -= p * ba.inv_mass);
-                sb.update(b, |s| s.pseudo += p * bb.inv_mass);
+                push_out(sb, c, bias.rate * pen);
                 // The velocity holds, as softly as the contact is (rigid: fully).
                 (0.0, bias.mass_scale, bias.impulse_scale)
             } else if pen > 0.0 {
@@ -272,6 +275,54 @@ fn solve_contact<const MEASURE: bool>(
         }
     }
     0.0
+}
+
+/// The split impulse of one contact: its bodies' pseudo-velocities apart at `target` along
+/// its normal (capped at its `max_push`), the accumulated impulse never pulling.
+#[inline(always)]
+fn push_out(sb: Bodies, c: &mut Contact, target: f64) {
+    let (a, b) = (c.a as usize, c.b as usize);
+    let (ba, bb) = (sb.get(a), sb.get(b));
+    let target = target.min(c.max_push);
+    let pv = (bb.pseudo - ba.pseudo).dot(c.normal);
+    let total = (c.pseudo_impulse + c.mass * (target - pv)).max(0.0);
+    let p = c.normal * (total - c.pseudo_impulse);
+    c.pseudo_impulse = total;
+    sb.update(a, |s| s.pseudo -= p * ba.inv_mass);
+    sb.update(b, |s| s.pseudo += p * bb.inv_mass);
+}
+
+/// The split impulses of the contacts with a static body that do not hold a body up once
+/// more, after a pass: a body its neighbours pushed into a wall ends the pass pushed out of
+/// it. Solved only in their place among the others, a crowd squeezed between circles
+/// pushed its outer circles through walls a tenth of a circle thick. Supports (a normal
+/// within 45 degrees of the body's gain, gravity) are left to the pass: pushing a pile's
+/// bottom row out of the ground harder than the overlaps above push it in left piles
+/// started overlapped still overlapped. Velocities are left as the pass left them.
+fn static_push_out(
+    team: &Team,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    gain: &[DVec2],
+    rate: f64,
+) {
+    in_blocks(team, sb, buckets, |bodies, c| {
+        if !c.fixed {
+            return 0.0;
+        }
+        let (a, b) = (c.a as usize, c.b as usize);
+        let moving = if bodies.get(a).inv_mass > 0.0 { a } else { b };
+        let g = gain.get(moving).copied().unwrap_or(DVec2::ZERO);
+        if g.dot(c.normal).abs() > SUPPORT_COS * g.length() && g != DVec2::ZERO {
+            return 0.0;
+        }
+        let gap = c.gap + (bodies.get(b).delta - bodies.get(a).delta).dot(c.normal);
+        let pen = (-gap - c.slop).max(0.0);
+        if pen > 0.0 {
+            push_out(bodies, c, rate * pen);
+        }
+        0.0
+    });
 }
 
 /// One velocity pass over every contact; with `measure` (the frame's last pass), the

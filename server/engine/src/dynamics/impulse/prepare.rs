@@ -162,6 +162,8 @@ pub(super) struct Found {
     pub smallest: f64,
     /// Whether a contact is to bounce.
     pub bouncing: bool,
+    /// Whether a contact with a static body overlaps beyond its slop.
+    pub deep_fixed: bool,
 }
 
 impl Default for Found {
@@ -171,6 +173,7 @@ impl Default for Found {
             deepest: 0.0,
             smallest: f64::INFINITY,
             bouncing: false,
+            deep_fixed: false,
         }
     }
 }
@@ -183,6 +186,7 @@ impl Found {
             deepest: self.deepest.max(other.deepest),
             smallest: self.smallest.min(other.smallest),
             bouncing: self.bouncing || other.bouncing,
+            deep_fixed: self.deep_fixed || other.deep_fixed,
         }
     }
 }
@@ -274,6 +278,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             );
             found.smallest = found.smallest.min(size);
             found.bouncing |= bounce > 0.0;
+            let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
+            found.deep_fixed |= fixed && -gap > slop;
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
@@ -292,7 +298,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 // bouncing from short of the surface would give it the gap's height for
                 // nothing.
                 speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
-                fixed: a.inv_mass == 0.0 || b.inv_mass == 0.0,
+                fixed,
             });
         }
         found
