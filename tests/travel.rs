@@ -7,6 +7,7 @@
 mod common;
 
 use std::collections::BTreeMap;
+use std::process::Command as Process;
 use std::time::{Duration, Instant};
 
 use common::*;
@@ -378,8 +379,15 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         );
     }
 
-    // Closed, the fork is no longer served, and its place is free again.
-    assert!(server_command(&forked, ServerCommand::Close).ok);
+    // Closed from the command line, the fork says so, is no longer served, and its place
+    // is free again.
+    let closed = Process::new(bin("ricochet"))
+        .args(["--world", "table-fine", "--connect", &server.endpoint])
+        .args(["send", "close"])
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("ricochet starts");
+    ok(&closed);
     let began = Instant::now();
     while ok(&server.cli(&["worlds"])).contains("table-fine") {
         assert!(began.elapsed() < TIMEOUT, "the closed fork is still listed");

@@ -372,6 +372,17 @@ impl Client {
             }
             get.wait().map_err(|e| anyhow!("{key}: {e}"))
         };
+        // The holders are read before asking when none were read yet: a world that stops
+        // as it answers (a fork's `close`) no longer holds its token when its reply
+        // arrives, and a reply from a peer that held it when asked is the server's.
+        {
+            let mut servers = self.trust.servers.lock().unwrap_or_else(|e| e.into_inner());
+            if servers.is_empty() {
+                if let Ok(now) = self.servers(timeout) {
+                    *servers = now;
+                }
+            }
+        }
         let deadline = Instant::now() + timeout + Duration::from_millis(500);
         let mut ignored = 0usize;
         // Replies from holders of the world's token when several hold it: the one that
