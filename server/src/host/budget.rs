@@ -21,7 +21,8 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use super::inbox::{Sender, MAX_SENDERS};
+use super::inbox::Sender;
+use super::limiter::MAX_SENDERS;
 
 /// How much of the stepping thread's time commands may take.
 #[derive(Clone, Copy, Debug)]

@@ -26,20 +26,17 @@
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
-use std::time::Instant;
 
 use ricochet_protocol::command::Reply;
 use zenoh::query::Query;
 use zenoh::sample::Sample;
 
+use super::limiter::SenderLimiter;
 use super::outbox::Outbox;
 use super::peers::Peers;
 
 /// Who sent a command: the zenoh id its session declares, if any.
 pub type Sender = Option<String>;
-
-/// Senders with a bucket of their own at most; others share the anonymous one.
-pub const MAX_SENDERS: usize = 4096;
 
 /// A command or request waiting for the frame boundary.
 pub struct Incoming {
@@ -125,11 +122,6 @@ impl Unanswered {
     }
 }
 
-struct Bucket {
-    tokens: f64,
-    at: Instant,
-}
-
 #[derive(Default)]
 struct Queues {
     /// Each sender's commands, in the order they came.
@@ -143,14 +135,14 @@ struct Queues {
     /// `info` queries, answered before the others: an answer of a few hundred bytes never
     /// waits behind whole snapshots and states.
     infos: VecDeque<Query>,
-    buckets: HashMap<Sender, Bucket>,
-    /// Each sender's bucket of queries.
-    query_buckets: HashMap<Sender, Bucket>,
 }
 
 pub struct Inbox {
     queues: Mutex<Queues>,
     limits: InboxLimits,
+    /// Each sender's rate of commands, and of queries.
+    commands: SenderLimiter,
+    queries: SenderLimiter,
     pub turned: Turned,
     outbox: Outbox,
     /// The frame commands now take effect in, for refusals sent from here.
@@ -164,6 +156,8 @@ impl Inbox {
         Inbox {
             peers,
             queues: Mutex::new(Queues::default()),
+            commands: SenderLimiter::new(limits.rate, limits.burst),
+            queries: SenderLimiter::new(limits.query_rate, limits.query_burst),
             limits,
             turned: Turned::default(),
             outbox,
@@ -217,9 +211,7 @@ impl Inbox {
             return self.refuse(query, frame, error, &self.turned.unanswered.too_large);
         }
         let key = self.peers.bucket(&sender);
-        let mut q = self.lock();
-        if !take_token(&mut q.buckets, &key, &self.limits) {
-            drop(q);
+        if !self.commands.take(&key) {
             self.turned.rate_limited.fetch_add(1, Ordering::Relaxed);
             let error = format!(
                 "rate limit: a sender may send {} commands a second ({} at once); this one was dropped",
@@ -228,6 +220,7 @@ impl Inbox {
             return self.refuse(query, frame, error, &self.turned.unanswered.rate_limited);
         }
         let limits = self.limits;
+        let mut q = self.lock();
         let queued = q.waiting.get(&key).map_or(0, VecDeque::len);
         if queued >= limits.queue
             || q.count >= limits.queue.saturating_mul(4)
@@ -281,18 +274,12 @@ impl Inbox {
         let sender = self
             .peers
             .bucket(&query.source_info().map(|s| s.source_id().zid().to_string()));
-        let per_sender = InboxLimits {
-            rate: self.limits.query_rate,
-            burst: self.limits.query_burst,
-            ..self.limits
-        };
         let mut q = self.lock();
         let waiting = match ask {
             Ask::Info => q.infos.len(),
             _ => q.queries.len(),
         };
-        if waiting >= self.limits.queries || !take_token(&mut q.query_buckets, &sender, &per_sender)
-        {
+        if waiting >= self.limits.queries || !self.queries.take(&sender) {
             drop(q);
             // Dropping the query ends it for the querier: no answer.
             self.turned.queries_dropped.fetch_add(1, Ordering::Relaxed);
@@ -328,41 +315,6 @@ impl Inbox {
             None if heavy => q.queries.pop_front(),
             None => None,
         }
-    }
-}
-
-/// Takes one token from `sender`'s bucket, refilled at `rate` a second up to `burst`.
-fn take_token(
-    buckets: &mut HashMap<Sender, Bucket>,
-    sender: &Sender,
-    limits: &InboxLimits,
-) -> bool {
-    let now = Instant::now();
-    let key = if buckets.contains_key(sender) || buckets.len() < MAX_SENDERS {
-        sender.clone()
-    } else {
-        // Forget senders whose buckets are full again (idle ones); else share.
-        buckets.retain(|_, b| {
-            b.tokens + limits.rate * now.duration_since(b.at).as_secs_f64() < limits.burst
-        });
-        if buckets.len() < MAX_SENDERS {
-            sender.clone()
-        } else {
-            None
-        }
-    };
-    let bucket = buckets.entry(key).or_insert(Bucket {
-        tokens: limits.burst,
-        at: now,
-    });
-    bucket.tokens = (bucket.tokens + limits.rate * now.duration_since(bucket.at).as_secs_f64())
-        .min(limits.burst);
-    bucket.at = now;
-    if bucket.tokens >= 1.0 {
-        bucket.tokens -= 1.0;
-        true
-    } else {
-        false
     }
 }
 
@@ -427,45 +379,5 @@ mod tests {
         inbox.offer(vec![0; 70_000], a.clone(), None);
         assert_eq!(inbox.turned.too_large.load(Ordering::Relaxed), 1);
         assert!(inbox.next().is_none());
-    }
-
-    #[test]
-    fn a_bucket_gives_its_burst_then_its_rate() {
-        let limits = InboxLimits {
-            rate: 10.0,
-            burst: 5.0,
-            ..InboxLimits::default()
-        };
-        let mut buckets = HashMap::new();
-        let alice = Some("a".to_string());
-        let taken = (0..20)
-            .filter(|_| take_token(&mut buckets, &alice, &limits))
-            .count();
-        assert_eq!(taken, 5, "the burst, then nothing at once");
-        // Another sender has a bucket of its own.
-        let bob = Some("b".to_string());
-        assert!(take_token(&mut buckets, &bob, &limits));
-        std::thread::sleep(std::time::Duration::from_millis(350));
-        let later = (0..20)
-            .filter(|_| take_token(&mut buckets, &alice, &limits))
-            .count();
-        assert!((3..=5).contains(&later), "about 0.35 s of rate: {later}");
-    }
-
-    #[test]
-    fn past_the_sender_cap_newcomers_share_one_bucket() {
-        let limits = InboxLimits {
-            rate: 0.001,
-            burst: 1.0,
-            ..InboxLimits::default()
-        };
-        let mut buckets = HashMap::new();
-        for i in 0..MAX_SENDERS {
-            assert!(take_token(&mut buckets, &Some(i.to_string()), &limits));
-        }
-        // Every bucket is empty, so none is forgotten: newcomers share the anonymous one.
-        assert!(take_token(&mut buckets, &Some("new-1".into()), &limits));
-        assert!(!take_token(&mut buckets, &Some("new-2".into()), &limits));
-        assert!(buckets.len() <= MAX_SENDERS + 1);
     }
 }

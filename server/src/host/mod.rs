@@ -30,6 +30,7 @@ pub mod frames_out;
 pub mod hosted;
 pub mod inbox;
 pub mod journal;
+mod limiter;
 mod memory;
 pub mod outbox;
 pub mod peers;
