@@ -58,12 +58,14 @@ fn pin(pid: u32, cpus: &str) -> bool {
 
 /// CPU seconds (user and system) a process has used.
 fn cpu_seconds(pid: u32) -> Option<f64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    // Fields after the command name (which may hold spaces), from field 3 on.
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
+    let pid = sysinfo::Pid::from_u32(pid);
+    let mut system = sysinfo::System::new();
+    system.refresh_processes_specifics(
+        sysinfo::ProcessesToUpdate::Some(&[pid]),
+        false,
+        sysinfo::ProcessRefreshKind::nothing().with_cpu(),
+    );
+    Some(system.process(pid)?.accumulated_cpu_time() as f64 / 1000.0)
 }
 
 /// Bytes a process has sent on its TCP connections now open: the kernel's `bytes_sent`
@@ -368,5 +370,21 @@ impl FanoutReport {
             ));
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_process_cpu_time_grows_as_it_works() {
+        let pid = std::process::id();
+        let before = super::cpu_seconds(pid).expect("this process is read");
+        let began = std::time::Instant::now();
+        let mut x = 0u64;
+        while began.elapsed() < std::time::Duration::from_millis(300) {
+            x = std::hint::black_box(x.wrapping_mul(31).wrapping_add(7));
+        }
+        let after = super::cpu_seconds(pid).expect("this process is read");
+        assert!(after - before >= 0.1, "{before} s, then {after} s");
     }
 }

@@ -104,15 +104,15 @@ pub fn machine() -> String {
 
 /// The machine's cores and CPU model.
 pub fn cpu() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
+    let system = sysinfo::System::new_with_specifics(
+        sysinfo::RefreshKind::nothing().with_cpu(sysinfo::CpuRefreshKind::nothing()),
+    );
+    let cpu = system
+        .cpus()
+        .first()
+        .map(|c| c.brand().trim())
+        .filter(|b| !b.is_empty())
+        .unwrap_or("unknown CPU");
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     format!("{cores} cores ({cpu})")
 }
@@ -120,6 +120,15 @@ pub fn cpu() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_machine_names_its_cpu() {
+        let cpu = cpu();
+        assert!(
+            !cpu.contains("unknown CPU") && !cpu.starts_with("0 cores"),
+            "{cpu}"
+        );
+    }
 
     #[test]
     fn splice_replaces_only_between_the_markers() {

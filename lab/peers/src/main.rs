@@ -130,20 +130,18 @@ fn quote(arg: &str) -> String {
     }
 }
 
-/// "N cores, MODEL" from /proc/cpuinfo (the cores this process may use if that is unknown).
+/// "N cores, MODEL": the cores this process may use, and the CPU's name.
 fn machine() -> String {
-    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-    let cores = info.lines().filter(|l| l.starts_with("processor")).count();
-    let cores = if cores > 0 {
-        cores
-    } else {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    };
-    let model = info
-        .lines()
-        .find(|l| l.starts_with("model name"))
-        .and_then(|l| l.split_once(':'))
-        .map_or("unknown CPU", |(_, m)| m.trim());
+    let system = sysinfo::System::new_with_specifics(
+        sysinfo::RefreshKind::nothing().with_cpu(sysinfo::CpuRefreshKind::nothing()),
+    );
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let model = system
+        .cpus()
+        .first()
+        .map(|c| c.brand().trim())
+        .filter(|b| !b.is_empty())
+        .unwrap_or("unknown CPU");
     format!("{cores} cores, {model}")
 }
 

@@ -1,4 +1,4 @@
-//! The soak's server process, and its memory as `/proc` tells it.
+//! The soak's server process, and its memory as the kernel tells it.
 
 use std::process::{Child, Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -7,29 +7,33 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
-/// Process `pid`'s resident memory, MiB (Linux): (anonymous, all). Anonymous memory is
-/// what the process allocated (heap, stacks, buffers); the rest is mostly its executable's
-/// code, paged in from the file as code paths first run, shared and reclaimable.
+/// Process `pid`'s resident memory, MiB (Linux): (anonymous, all), and its threads.
+/// Anonymous memory is what the process allocated (heap, stacks, buffers); the rest is
+/// mostly its executable's code, paged in from the file as code paths first run, shared
+/// and reclaimable. `sysinfo` reads the whole resident set and the threads; the anonymous
+/// part, which is what a leak grows, only `/proc/PID/status` gives.
 fn rss_mib(pid: u32) -> Option<(f64, f64, u32)> {
+    let id = sysinfo::Pid::from_u32(pid);
+    let mut system = sysinfo::System::new();
+    system.refresh_processes_specifics(
+        sysinfo::ProcessesToUpdate::Some(&[id]),
+        false,
+        sysinfo::ProcessRefreshKind::nothing()
+            .with_memory()
+            .with_tasks(),
+    );
+    let process = system.process(id)?;
+    let threads = process.tasks().map_or(1, |t| t.len().max(1)) as u32;
+    let all = process.memory() as f64 / (1024.0 * 1024.0);
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let field = |name: &str| -> Option<f64> {
-        let kib: f64 = status
-            .lines()
-            .find(|l| l.starts_with(name))?
-            .split_whitespace()
-            .nth(1)?
-            .parse()
-            .ok()?;
-        Some(kib / 1024.0)
-    };
-    let threads = status
+    let anon_kib: f64 = status
         .lines()
-        .find(|l| l.starts_with("Threads:"))?
+        .find(|l| l.starts_with("RssAnon:"))?
         .split_whitespace()
         .nth(1)?
         .parse()
         .ok()?;
-    Some((field("RssAnon:")?, field("VmRSS:")?, threads))
+    Some((anon_kib / 1024.0, all, threads))
 }
 
 /// Resident anonymous memory of a server process (what it allocated), MiB, sampled every
@@ -155,5 +159,21 @@ impl ServerProcess {
         let rss = self.rss.lock().unwrap().0;
         drop(self);
         rss
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn this_process_has_memory_and_threads() {
+        let held = std::hint::black_box(vec![1u8; 64 << 20]);
+        let worker =
+            std::thread::spawn(|| std::thread::sleep(std::time::Duration::from_millis(500)));
+        let (anon, all, threads) =
+            super::rss_mib(std::process::id()).expect("this process is read");
+        assert!(anon >= 60.0 && all >= anon, "{anon} MiB anonymous of {all}");
+        assert!(threads >= 2, "{threads} threads");
+        drop(held);
+        worker.join().unwrap();
     }
 }
