@@ -7,7 +7,9 @@ particles, a key frame every 60 frames, as `run` sends them), then decodes every
 the numpy decoder, as `World.frames()` does (apply, then the frame as arrays), `--repeat`
 times, keeping each frame's fastest time. It reports the frames that hold at least
 `--particles` particles: the delta frames, and the key frames apart (each holds every
-particle whole). The plain-Python decoder is timed on the first such deltas beside it.
+particle whole), read by numpy alone and, when `pip install ./python/native` put it in
+the environment, by the Rust decoder's module. The plain-Python decoder is timed on the
+first such deltas beside it.
 """
 
 from __future__ import annotations
@@ -27,10 +29,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "python" / "src"))
 
-from ricochet import pure  # noqa: E402
+from ricochet import decode, pure  # noqa: E402
 from ricochet.cli import recorded  # noqa: E402
 from ricochet.decode import FrameDecoder  # noqa: E402
 from ricochet.layout import KIND_DELTA, KIND_STATICS  # noqa: E402
+
+# The Rust decoder's key-frame reading, when `pip install ./python/native` put it here.
+NATIVE = decode._KEY_PARTICLES
 
 
 def server_binary(given: str | None) -> Path:
@@ -61,9 +66,11 @@ def commit() -> str:
     return out.stdout.strip() or "unknown"
 
 
-def timed_numpy(payloads: list[bytes], repeat: int) -> tuple[list[float], list[int], list[int]]:
+def timed_numpy(payloads: list[bytes], repeat: int, native: bool) -> tuple[list[float], list[int], list[int]]:
     """Each payload's fastest decoding time (ms) over `repeat` runs, its kind and the
-    particles held after it."""
+    particles held after it; key frames read by the Rust decoder (`ricochet_native`) when
+    `native`, else by numpy alone."""
+    decode._KEY_PARTICLES = NATIVE if native else None
     best = [float("inf")] * len(payloads)
     kinds, held = [0] * len(payloads), [0] * len(payloads)
     for _ in range(repeat):
@@ -128,13 +135,19 @@ def main() -> int:
             stderr=subprocess.DEVNULL,
         )
         payloads = list(recorded(str(path)))
-    best, kinds, held = timed_numpy(payloads, args.repeat)
+    if NATIVE is None:
+        print("note: ricochet_native is not installed (pip install ./python/native): key frames by numpy only", file=sys.stderr)
+    best, kinds, held = timed_numpy(payloads, args.repeat, native=False)
     many = [i for i in range(len(payloads)) if held[i] >= args.particles]
     deltas = [i for i in many if kinds[i] == KIND_DELTA]
     keys = [i for i in many if kinds[i] != KIND_DELTA]
     pure_times, pure_held = timed_pure(payloads, args.pure_frames, args.particles)
     delta_ms = [best[i] for i in deltas]
-    key_ms = [best[i] for i in keys]
+    numpy_key_ms = [best[i] for i in keys]
+    key_ms = numpy_key_ms
+    if NATIVE is not None:
+        native_best, _, _ = timed_numpy(payloads, args.repeat, native=True)
+        key_ms = [native_best[i] for i in keys]
     budget = 1000 / 60
     scene = os.path.relpath(args.scene, ROOT)
     lines = [
@@ -149,15 +162,24 @@ def main() -> int:
         "| decoder, frames | frames | particles held | median, ms | mean, ms | slowest, ms | frames a second |",
         "|---|---|---|---|---|---|---|",
         row("numpy, delta frames", delta_ms, [held[i] for i in deltas]),
-        row("numpy, key frames", key_ms, [held[i] for i in keys]),
+        row("numpy, key frames", numpy_key_ms, [held[i] for i in keys]),
+        row("numpy and `ricochet_native`, key frames", key_ms if NATIVE else [], [held[i] for i in keys]),
         row("plain Python, delta frames", pure_times, pure_held),
         "",
         "What this means for you:",
         f"- a delta frame of {args.particles} particles or more decodes in {statistics.median(delta_ms):.1f} ms "
         f"(median; slowest {max(delta_ms):.1f} ms): {sum(t < budget for t in delta_ms)} of {len(delta_ms)} "
         f"within a 60 Hz frame ({budget:.1f} ms);",
-        f"- a key frame (every 60 frames, and the state a joiner starts from) holds every particle whole "
-        f"and takes {statistics.fmean(key_ms):.0f} ms;" if key_ms else "- no key frame held that many;",
+        (
+            f"- a key frame (every 60 frames, and the state a joiner starts from) holds every particle whole: "
+            f"{statistics.fmean(key_ms):.1f} ms with `pip install ./python/native` (the Rust decoder reads it), "
+            f"{statistics.fmean(numpy_key_ms):.0f} ms with numpy alone;"
+            if NATIVE
+            else f"- a key frame holds every particle whole and takes {statistics.fmean(numpy_key_ms):.0f} ms "
+            "with numpy alone (`pip install ./python/native` was not installed for this run);"
+        )
+        if key_ms
+        else "- no key frame held that many;",
         f"- the plain-Python decoder, the layout's second reading, takes {statistics.fmean(pure_times):.0f} ms "
         "a delta of as many: it is for checking, not for crowds." if pure_times else "",
         "",

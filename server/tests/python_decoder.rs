@@ -4,7 +4,8 @@
 //! receiver predicts frame by frame between records) and every particle's position, at
 //! every frame, from the first key frame and from a resync key frame taken mid-run. The
 //! `ricochet` package's numpy decoder (`python/src/ricochet/decode.py`, `decode --numpy`)
-//! is held to the same.
+//! is held to the same, with key frames read by numpy alone and by the Rust decoder's
+//! module (`python/native`, which `.ci/install` installs).
 
 use std::io::Write;
 use std::path::Path;
@@ -36,9 +37,20 @@ fn view(d: &FrameDecoder) -> serde_json::Value {
     serde_json::json!({"frame": d.frame, "bodies": bodies, "particles": particles})
 }
 
+/// Which of the package's readings decodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reader {
+    /// `ricochet.pure`.
+    Plain,
+    /// The numpy decoder, key frames too.
+    Numpy,
+    /// The numpy decoder, key frames by `ricochet_native` (the Rust decoder's module).
+    Native,
+}
+
 /// The Python decoder's frames (the plain one, or with `numpy` the package's numpy one),
 /// with each particle's position as the f32 the Rust decoder gives.
-fn python_views(payloads: &[Vec<u8>], numpy: bool) -> Vec<serde_json::Value> {
+fn python_views(payloads: &[Vec<u8>], reader: Reader) -> Vec<serde_json::Value> {
     let mut file = tempfile::NamedTempFile::new().unwrap();
     for p in payloads {
         file.write_all(&(p.len() as u32).to_le_bytes()).unwrap();
@@ -48,7 +60,13 @@ fn python_views(payloads: &[Vec<u8>], numpy: bool) -> Vec<serde_json::Value> {
     let out = Command::new(python::python())
         .arg(root().join("assets/scripts/ricochet_client.py"))
         .args(["decode", file.path().to_str().unwrap()])
-        .args(numpy.then_some("--numpy"))
+        .args((reader != Reader::Plain).then_some("--numpy"))
+        // Key frames read by the Rust decoder's module (`ricochet_native`, which must be
+        // installed), or by numpy alone.
+        .env(
+            "RICOCHET_NATIVE",
+            if reader == Reader::Native { "1" } else { "0" },
+        )
         .output()
         .expect("python3 runs");
     assert!(
@@ -130,9 +148,9 @@ fn check(scene_file: &str, steps: u64, resync_at: u64, stride: u64) {
             }
         }
         assert_eq!(rust.dropped_key_frames, u64::from(n == 2), "{scene_file}");
-        for numpy in [false, true] {
-            let got = python_views(&payloads, numpy);
-            compare(scene_file, numpy, &got, &expected);
+        for reader in [Reader::Plain, Reader::Numpy, Reader::Native] {
+            let got = python_views(&payloads, reader);
+            compare(scene_file, reader, &got, &expected);
         }
     }
 }
@@ -141,15 +159,14 @@ fn check(scene_file: &str, steps: u64, resync_at: u64, stride: u64) {
 /// differ.
 fn compare(
     scene_file: &str,
-    numpy: bool,
+    reader: Reader,
     got: &[serde_json::Value],
     expected: &[serde_json::Value],
 ) {
-    let reader = if numpy { "numpy" } else { "python" };
     assert_eq!(
         got.len(),
         expected.len(),
-        "{scene_file}: frames decoded by {reader}"
+        "{scene_file}: frames decoded by {reader:?}"
     );
     for (g, e) in got.iter().zip(expected) {
         if g != e {
@@ -159,7 +176,7 @@ fn compare(
             let particle = (0..e["particles"].as_array().unwrap().len())
                 .find(|&i| first(g, "particles", i) != first(e, "particles", i));
             panic!(
-                    "{scene_file}: frame {} differs: body {body:?}: {reader} {} rust {}; particle {particle:?}",
+                    "{scene_file}: frame {} differs: body {body:?}: {reader:?} {} rust {}; particle {particle:?}",
                     e["frame"],
                     body.map_or(serde_json::Value::Null, |i| first(g, "bodies", i)),
                     body.map_or(serde_json::Value::Null, |i| first(e, "bodies", i)),

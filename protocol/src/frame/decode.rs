@@ -8,7 +8,7 @@ use super::records::{self, Change, Section};
 use super::wire::Reader;
 use super::{
     Body, DecodeError, EmitterIn, FrameStats, Particle, COLLIDED, FREEZE_X, FREEZE_Y, FROZEN,
-    KIND_DELTA, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS,
+    KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS,
     POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK, SAME_MOTION, SAME_SHAPE, VEL,
 };
 
@@ -513,6 +513,29 @@ fn read_new_particle(
         size_delta,
         record_frame: frame,
     })
+}
+
+/// The particles of a key frame's particle section (`section`: from its record count to
+/// the payload's end), as [`FrameDecoder::apply`] reads them: for readers that hold
+/// particles their own way (the Python package's native module). `exact` in a resync key
+/// frame; `frame` the frame's number. A record that is not NEW, or bytes left over, is
+/// refused.
+pub fn read_key_particles(
+    section: &[u8],
+    exact: bool,
+    frame: u64,
+) -> Result<Vec<Particle>, DecodeError> {
+    let mut r = Reader::new(section);
+    let mut out = Vec::new();
+    let kind = if exact { KIND_RESYNC } else { KIND_KEY };
+    read_particles(&mut r, &[], &mut out, kind, frame, 0.0, 0)?;
+    if r.at != section.len() {
+        return Err(DecodeError::Malformed(format!(
+            "{} bytes left over",
+            section.len() - r.at
+        )));
+    }
+    Ok(out)
 }
 
 /// Reads a frame's particles against `held` into `out` (emptied first).

@@ -119,7 +119,7 @@ mod records;
 mod tests;
 mod wire;
 
-pub use decode::{peek_header, FrameDecoder, Header, MAX_STEPS_A_FRAME};
+pub use decode::{peek_header, read_key_particles, FrameDecoder, Header, MAX_STEPS_A_FRAME};
 pub use encode::{encode_statics, FrameEncoder};
 
 /// The particles' colour model, as receivers predict it: the start colour plus `delta`

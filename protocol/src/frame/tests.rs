@@ -528,3 +528,18 @@ fn the_same_motion_costs_the_same_along_either_axis() {
     // The first decision of each frame (x's) sits at a different place in the range.
     assert!(x.abs_diff(y) <= y / 20, "along x {x} bytes, along y {y}");
 }
+
+#[test]
+fn a_key_section_read_alone_refuses_what_a_key_frame_cannot_hold() {
+    // One record, id 1, an update (POS): a key frame holds no particle to update.
+    let update = [1u8, 1, POS, 2, 2];
+    let err = read_key_particles(&update, false, 0).unwrap_err();
+    assert!(err.to_string().contains("update of unknown particle 1"), "{err}");
+    // A NEW record cut short, and a count the bytes cannot back.
+    assert!(read_key_particles(&[1, 1, NEW, 2], false, 0).is_err());
+    assert!(read_key_particles(&[200, 1], false, 0).is_err());
+    // Nothing, then bytes left over.
+    assert!(read_key_particles(&[0], false, 0).unwrap().is_empty());
+    let err = read_key_particles(&[0, 7], false, 0).unwrap_err();
+    assert!(err.to_string().contains("1 bytes left over"), "{err}");
+}

@@ -6,8 +6,9 @@ it)."""
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Callable, Optional
 
 import numpy as np
 import numpy.typing as npt
@@ -28,8 +29,35 @@ from .layout import (
     POS,
     REMOVED,
     VEL,
+    PROTOCOL_VERSION,
     Reader,
 )
+
+
+def _native() -> Optional[Callable[[bytes, bool, int], tuple[bytearray, bytearray, bytearray]]]:
+    """The Rust decoder's reading of key frames (`pip install ./python/native`), when it is
+    installed, reads this layout and `RICOCHET_NATIVE` is not 0; with `RICOCHET_NATIVE=1`
+    it must be there."""
+    wanted = os.environ.get("RICOCHET_NATIVE", "")
+    if wanted == "0":
+        return None
+    try:
+        import ricochet_native  # type: ignore[import-not-found]
+    except ImportError:
+        if wanted == "1":
+            raise
+        return None
+    if ricochet_native.PROTOCOL_VERSION != PROTOCOL_VERSION:
+        if wanted == "1":
+            raise ImportError(
+                f"ricochet_native reads frame layout {ricochet_native.PROTOCOL_VERSION}, this package {PROTOCOL_VERSION}"
+            )
+        return None
+    read: Callable[[bytes, bool, int], tuple[bytearray, bytearray, bytearray]] = ricochet_native.key_particles
+    return read
+
+
+_KEY_PARTICLES = _native()
 
 
 # The rows of HeldParticles.f (f32) and HeldParticles.u (u8).
@@ -125,6 +153,8 @@ class FrameDecoder(pure.FrameDecoder):
         return HeldParticles.empty()
 
     def _read_particles(self, r: Reader, kind: int, frame: int, dt: float, steps: int) -> HeldParticles:
+        if kind != KIND_DELTA and _KEY_PARTICLES is not None:
+            return _key_particles(_KEY_PARTICLES, r, kind, frame)
         count = r.varint()
         section = r.data[r.at :]
         recs = records.read(section, count, kind == KIND_RESYNC, kind != KIND_DELTA, self._scratch)
@@ -195,6 +225,25 @@ class FrameDecoder(pure.FrameDecoder):
     def view(self) -> dict[str, Any]:
         """The frame held as plain data, as the pure decoder's `view`."""
         return self.to_frame().plain()
+
+
+def _key_particles(
+    read: Callable[[bytes, bool, int], tuple[bytearray, bytearray, bytearray]], r: Reader, kind: int, frame: int
+) -> HeldParticles:
+    """A key frame's particles, read by the Rust decoder (the section runs to the
+    payload's end)."""
+    try:
+        ids, f, u = read(bytes(r.data[r.at :]), kind == KIND_RESYNC, frame)
+    except ValueError as e:
+        raise DecodeError(str(e)) from None
+    r.at = len(r.data)
+    n = len(ids) // 8
+    return HeldParticles(
+        np.frombuffer(ids, "<i8"),
+        np.frombuffer(f, "<f4").reshape(11, n),
+        np.frombuffer(u, np.uint8).reshape(10, n),
+        np.full(n, frame, np.int64),
+    )
 
 
 def _corrected(
