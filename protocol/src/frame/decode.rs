@@ -8,8 +8,9 @@ use super::records::{self, Change, Section};
 use super::wire::Reader;
 use super::{
     Body, DecodeError, EmitterIn, FrameStats, Particle, COLLIDED, FREEZE_X, FREEZE_Y, FROZEN,
-    KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM, PARTICLE_VEL_QUANTUM, POS,
-    POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK, SAME_MOTION, SAME_SHAPE, VEL,
+    KIND_DELTA, KIND_KEY, KIND_RESYNC, KIND_STATICS, MAGIC, NEW, PARTICLE_QUANTUM,
+    PARTICLE_VEL_QUANTUM, POS, POS_STEP, REMOVED, SAME_GROUP, SAME_LOOK, SAME_MOTION, SAME_SHAPE,
+    VEL,
 };
 
 /// What a receiver knows of a world, kept up to date frame by frame.

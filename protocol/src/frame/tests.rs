@@ -534,7 +534,10 @@ fn a_key_section_read_alone_refuses_what_a_key_frame_cannot_hold() {
     // One record, id 1, an update (POS): a key frame holds no particle to update.
     let update = [1u8, 1, POS, 2, 2];
     let err = read_key_particles(&update, false, 0).unwrap_err();
-    assert!(err.to_string().contains("update of unknown particle 1"), "{err}");
+    assert!(
+        err.to_string().contains("update of unknown particle 1"),
+        "{err}"
+    );
     // A NEW record cut short, and a count the bytes cannot back.
     assert!(read_key_particles(&[1, 1, NEW, 2], false, 0).is_err());
     assert!(read_key_particles(&[200, 1], false, 0).is_err());

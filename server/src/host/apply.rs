@@ -59,7 +59,10 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
             first
         }
         None => {
-            let price = parsed.as_ref().ok().map(|command| host.price(command));
+            let price = parsed
+                .as_ref()
+                .ok()
+                .map(|command| host.price(command, &key));
             if let Some(price) = &price {
                 if let Err(over) = budgets.admit(&key, price.time(), Instant::now()) {
                     host.accounts.health.over_budget += 1;
@@ -126,7 +129,7 @@ pub(super) fn apply_incoming(host: &mut Hosted, incoming: Incoming, at: Boundary
             let took = began.elapsed();
             budgets.charge(&key, took);
             if let Some(price) = &price {
-                host.learn(price, took);
+                host.learn(&key, price, took);
             }
             // A command refused because the journal could not be written is tried afresh
             // when sent again: the disk may have room by then.

@@ -14,6 +14,7 @@ use ricochet_protocol::command::{
     Action, Command, Health, Reply, ServerCommand, WorldInfo, MAX_ERROR_BYTES,
 };
 
+use super::inbox::Sender;
 use super::travel::{self, Travel};
 use super::HostOptions;
 use crate::scenes::{read_scene, resolve_scene};
@@ -98,10 +99,11 @@ pub struct Stepping {
 /// What commands cost here, and the server's counts.
 pub struct Accounts {
     pub health: Health,
-    /// How much longer than their model commands took here, learnt on this world:
-    /// forgotten when the world is replaced (a `load`, a `reset`), so what a heavy world
-    /// taught does not price an honest client's commands on the next one.
-    calibration: price::Calibration,
+    /// How much longer than their model each sender's commands took here, learnt on this
+    /// world: forgotten when the world is replaced (a `load`, a `reset`), so what a heavy
+    /// world taught does not price an honest client's commands on the next one; and kept
+    /// per sender, so one sender's slow commands do not price another's.
+    calibration: price::Calibrations,
 }
 
 /// What handling a command did.
@@ -164,7 +166,7 @@ impl Hosted {
             },
             accounts: Accounts {
                 health: Health::default(),
-                calibration: price::Calibration::default(),
+                calibration: price::Calibrations::default(),
             },
             accuracy: None,
         }
@@ -172,7 +174,7 @@ impl Hosted {
 
     fn replace_world(&mut self, world: World) {
         self.world = world;
-        self.accounts.calibration = price::Calibration::default();
+        self.accounts.calibration = price::Calibrations::default();
         self.wire.generation += 1;
         self.wire.streams.force_key_frame();
         self.wire.statics_revision = None;
@@ -245,7 +247,7 @@ impl Hosted {
     /// (docs/security.md, "The cost of a command"), scaled by what the last command of its
     /// kind took here ([`price`]). The budgets refuse by this price and charge the time
     /// the command really took, so a price too low is paid in full all the same.
-    pub fn price(&self, command: &Command) -> price::Price {
+    pub fn price(&self, command: &Command, sender: &Sender) -> price::Price {
         let (kind, mut ns) = price::model(
             command,
             self.world.bodies().len() as f64,
@@ -258,12 +260,17 @@ impl Hosted {
             // The steps it replays, at what the last step took.
             ns += self.travel.replay_steps() as f64 * f64::from(self.stepping.last_step_ms) * 1e6;
         }
-        self.accounts.calibration.price((kind, ns), Instant::now())
+        self.accounts
+            .calibration
+            .price(sender, (kind, ns), Instant::now())
     }
 
-    /// Learns what a command priced `price` took here (see [`price::Calibration`]).
-    pub fn learn(&mut self, price: &price::Price, took: Duration) {
-        self.accounts.calibration.learn(price, took, Instant::now());
+    /// Learns what `sender`'s command priced `price` took here (see
+    /// [`price::Calibrations`]).
+    pub fn learn(&mut self, sender: &Sender, price: &price::Price, took: Duration) {
+        self.accounts
+            .calibration
+            .learn(sender, price, took, Instant::now());
     }
 
     /// Applies one command at the frame boundary; the reply says what it did. A `step`
@@ -602,13 +609,14 @@ mass = 1
     fn what_a_world_taught_the_prices_is_forgotten_on_load_and_reset() {
         let mut h = hosted();
         let reset = Command::Server(ServerCommand::Reset { paused: false });
-        let model = h.price(&reset).time();
+        let attacker: Sender = Some("attacker".into());
+        let model = h.price(&reset, &attacker).time();
         assert!(model < Duration::from_millis(1), "{model:?}");
         // A second's run: scaled to the most a kind may be, a thousand times the model.
         let taught = |h: &mut Hosted| {
-            let price = h.price(&reset);
-            h.learn(&price, Duration::from_secs(1));
-            assert!(h.price(&reset).time() >= model * 999);
+            let price = h.price(&reset, &attacker);
+            h.learn(&attacker, &price, Duration::from_secs(1));
+            assert!(h.price(&reset, &attacker).time() >= model * 999);
         };
         taught(&mut h);
         let load = Command::Server(ServerCommand::Load {
@@ -616,12 +624,40 @@ mass = 1
             text: Some(SCENE.into()),
         });
         assert!(h.handle(&load).reply.ok);
-        assert_eq!(h.price(&reset).time(), model, "forgotten on load");
+        assert_eq!(
+            h.price(&reset, &attacker).time(),
+            model,
+            "forgotten on load"
+        );
         taught(&mut h);
         assert!(h.handle(&reset).reply.ok);
-        assert_eq!(h.price(&reset).time(), model, "forgotten on reset");
+        assert_eq!(
+            h.price(&reset, &attacker).time(),
+            model,
+            "forgotten on reset"
+        );
         // Within a world, it is learnt.
         taught(&mut h);
+    }
+
+    /// One sender's slow commands raise its own prices, not another's: an honest
+    /// client's `reset` stays at the model however slow the attacker's were, and the
+    /// anonymous sender's (source-less requests) too.
+    #[test]
+    fn a_senders_slow_commands_price_its_own_commands_only() {
+        let mut h = hosted();
+        let reset = Command::Server(ServerCommand::Reset { paused: false });
+        let (attacker, honest): (Sender, Sender) = (Some("attacker".into()), Some("honest".into()));
+        let model = h.price(&reset, &honest).time();
+        let price = h.price(&reset, &attacker);
+        h.learn(&attacker, &price, Duration::from_secs(1));
+        assert!(h.price(&reset, &attacker).time() >= model * 999);
+        assert_eq!(h.price(&reset, &honest).time(), model);
+        assert_eq!(h.price(&reset, &None).time(), model);
+        // The honest client's own slow reset is learnt for it.
+        let price = h.price(&reset, &honest);
+        h.learn(&honest, &price, Duration::from_millis(10));
+        assert!(h.price(&reset, &honest).time() > model);
     }
 
     #[test]
@@ -728,7 +764,7 @@ mass = 1
         ];
         for json in &commands {
             let command = Command::parse(json.as_bytes()).unwrap();
-            let price = host.price(&command);
+            let price = host.price(&command, &None);
             let mut best = Duration::MAX;
             for _ in 0..5 {
                 let mut h = Hosted::load(text.clone(), path.clone(), &opts).unwrap();

@@ -15,9 +15,13 @@
 //! slow run (a machine stalled under it) does not lock its kind out for good, and a
 //! really slow kind runs at most once a half-life or so over the burst.
 
+use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 use ricochet_protocol::command::{Action, Command, ServerCommand};
+
+use super::inbox::Sender;
+use super::limiter::MAX_SENDERS;
 
 // Costs per item of the commands' work, from the times `handling_costs_per_item`
 // (host/hosted.rs) measured on the shipped pile on the reference machine (2 vCPU Xeon),
@@ -188,6 +192,15 @@ impl Calibration {
         }
     }
 
+    /// Whether every scale has decayed to within a thousandth of the model by `now`.
+    fn rested(&self, now: Instant) -> bool {
+        self.0.iter().flatten().all(|&(scale, at)| {
+            let halves =
+                now.saturating_duration_since(at).as_secs_f64() / Self::HALF_LIFE.as_secs_f64();
+            (scale - 1.0) * 0.5f64.powf(halves) < 1e-3
+        })
+    }
+
     /// Learns from a command priced `price` that took `took`, done at `now`: its kind is
     /// scaled by `took` over the model from then on.
     pub fn learn(&mut self, price: &Price, took: Duration, now: Instant) {
@@ -197,6 +210,36 @@ impl Calibration {
                 self.0[k] = Some((ratio.clamp(1.0, MAX_SCALE), now));
             }
         }
+    }
+}
+
+/// Each sender's [`Calibration`]: what one sender's commands took scales its own prices,
+/// never another's (an attacker whose commands run slow cannot price an honest client's
+/// out). At most [`MAX_SENDERS`] senders; past it, the senders whose scales have decayed
+/// back to the model are forgotten, and newcomers then share the anonymous sender's.
+#[derive(Clone, Debug, Default)]
+pub struct Calibrations(HashMap<Sender, Calibration>);
+
+impl Calibrations {
+    /// The price at `now` of `sender`'s command the model puts at `model_ns` of `kind`.
+    pub fn price(&self, sender: &Sender, priced: (Kind, f64), now: Instant) -> Price {
+        match self.0.get(sender) {
+            Some(calibration) => calibration.price(priced, now),
+            None => Calibration::default().price(priced, now),
+        }
+    }
+
+    /// Learns from `sender`'s command priced `price` that took `took`, done at `now`.
+    pub fn learn(&mut self, sender: &Sender, price: &Price, took: Duration, now: Instant) {
+        if !self.0.contains_key(sender) && self.0.len() >= MAX_SENDERS {
+            self.0.retain(|_, c| !c.rested(now));
+        }
+        let key = if self.0.contains_key(sender) || self.0.len() < MAX_SENDERS {
+            sender.clone()
+        } else {
+            None
+        };
+        self.0.entry(key).or_default().learn(price, took, now);
     }
 }
 
@@ -256,5 +299,26 @@ mod tests {
         assert!((ms(c.price(reset, later)) - 180.0).abs() < 1e-6);
         let much_later = t0 + Calibration::HALF_LIFE * 10;
         assert!(ms(c.price(reset, much_later)) < 90.2);
+    }
+
+    #[test]
+    fn past_the_sender_cap_newcomers_share_until_others_rest() {
+        let mut c = Calibrations::default();
+        let now = Instant::now();
+        let price = Calibration::default().price(RESET, now);
+        for k in 0..MAX_SENDERS {
+            c.learn(&Some(k.to_string()), &price, Duration::from_secs(9), now);
+        }
+        // Every scale is fresh: a newcomer's run is learnt for the anonymous sender.
+        let newcomer = Some("new".to_string());
+        c.learn(&newcomer, &price, Duration::from_secs(9), now);
+        assert!(ms(c.price(&None, RESET, now)) > 90.0 * 99.0);
+        assert_eq!(ms(c.price(&newcomer, RESET, now)), 90.0);
+        assert!(c.0.len() <= MAX_SENDERS + 1);
+        // Long after, every scale has decayed to the model: forgotten, room again.
+        let later = now + Calibration::HALF_LIFE * 40;
+        c.learn(&newcomer, &price, Duration::from_secs(9), later);
+        assert!(c.0.len() <= 2, "{} senders kept", c.0.len());
+        assert!(ms(c.price(&newcomer, RESET, later)) > 90.0 * 99.0);
     }
 }
