@@ -25,6 +25,7 @@ pub mod families;
 pub mod fanout;
 pub mod hostile;
 pub mod profile;
+pub mod scaling;
 pub mod scene_tradeoff;
 pub mod soak;
 pub mod suite;

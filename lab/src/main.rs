@@ -62,6 +62,21 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out: Option<PathBuf>,
     },
+    /// How a step's cost grows with the work: writes the scenes of three series (bodies,
+    /// the largest body's size over the smallest's, pile depth) for the peer benchmark,
+    /// and draws the chart from the peer benchmark's peers.csv.
+    ///
+    /// scaling --scenes-out target/scaling; then, from lab/peers, ricochet-peers --scenes
+    /// target/scaling --out docs/bench/scaling; then scaling --chart
+    /// docs/bench/scaling/peers.csv (writes scaling.png beside it).
+    Scaling {
+        /// Write the series' scenes into DIR as `<series>-<value>.toml`.
+        #[arg(long, value_name = "DIR")]
+        scenes_out: Option<PathBuf>,
+        /// Draw the chart from the peer benchmark's CSV, beside it as scaling.png.
+        #[arg(long, value_name = "CSV")]
+        chart: Option<PathBuf>,
+    },
     /// Measure the engine's speed on shipped scenes (figures, not pass/fail).
     ///
     /// The 100-level pyramid under each solver setting (with its worst drift over the
@@ -334,6 +349,22 @@ fn main() -> Result<()> {
                 );
                 std::fs::write(dir.join("families.md"), page)?;
                 eprintln!("wrote {}", dir.join("families.md").display());
+            }
+            Ok(())
+        }
+        Command::Scaling { scenes_out, chart } => {
+            anyhow::ensure!(
+                scenes_out.is_some() || chart.is_some(),
+                "give --scenes-out DIR, --chart CSV, or both"
+            );
+            if let Some(dir) = scenes_out {
+                let written = ricochet_lab::scaling::write(&dir)?;
+                eprintln!("wrote {} scenes into {}", written.len(), dir.display());
+            }
+            if let Some(csv) = chart {
+                let png = csv.with_file_name("scaling.png");
+                ricochet_lab::scaling::chart(&csv, &png)?;
+                eprintln!("wrote {}", png.display());
             }
             Ok(())
         }

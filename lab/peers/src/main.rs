@@ -1,11 +1,13 @@
-//! `ricochet-peers`: every scene of the suite of scene kinds (`assets/scenes/suite/`) in
-//! Ricochet, Box2D v3 and rapier2d, alternated in one run, each judged by the scene's
-//! criteria; writes the generated `peers.md` and `peers.csv`.
+//! `ricochet-peers`: every scene of the suite of scene kinds (`assets/scenes/suite/`), or
+//! of any directory (`--scenes`, such as the families' seeds), in Ricochet, Box2D v3 and
+//! rapier2d, alternated in one run, each judged by the scene's criteria; writes the
+//! generated `peers.md` and `peers.csv`.
 //!
 //!     cargo run --release --manifest-path lab/peers/Cargo.toml -- --out docs/bench
 
 mod box2d;
 mod engine;
+mod families;
 mod limit;
 mod rapier;
 mod run;
@@ -60,6 +62,7 @@ fn main() -> Result<()> {
         command: command_line(),
         rounds,
         machine: machine(),
+        scenes: scenes_named(&dir),
         box2d_version: box2d::version()?,
         boxdd_version: locked_version("boxdd")?,
         rapier_version: locked_version("rapier2d")?,
@@ -69,6 +72,18 @@ fn main() -> Result<()> {
     table::write(&args.out, &setup, &results)?;
     eprintln!("wrote {}/peers.md and peers.csv", args.out.display());
     Ok(())
+}
+
+/// `dir` as the page names it: from the repository's root when it lies inside it.
+fn scenes_named(dir: &Path) -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let (Ok(dir), Ok(root)) = (dir.canonicalize(), root.canonicalize()) else {
+        return dir.display().to_string();
+    };
+    match dir.strip_prefix(&root) {
+        Ok(inside) => format!("{}/", inside.display()),
+        Err(_) => format!("{}/", dir.display()),
+    }
 }
 
 /// The suite's directory as seen from the working directory: the repository root or

@@ -29,6 +29,8 @@ pub struct Setup {
     pub rounds: usize,
     /// "2 cores, AMD EPYC".
     pub machine: String,
+    /// The scenes' directory as the page names it (`assets/scenes/suite/`).
+    pub scenes: String,
     pub box2d_version: String,
     pub boxdd_version: String,
     pub rapier_version: String,
@@ -58,7 +60,7 @@ impl SceneResult {
         }
     }
 
-    fn outcome(&self, engine: EngineKind) -> &Outcome {
+    pub(crate) fn outcome(&self, engine: EngineKind) -> &Outcome {
         self.outcomes
             .iter()
             .find(|o| o.engine == engine)
@@ -66,7 +68,7 @@ impl SceneResult {
     }
 
     /// Box2D's mean time over `engine`'s (above 1: `engine` is faster than Box2D).
-    fn box2d_ratio(&self, engine: EngineKind) -> f64 {
+    pub(crate) fn box2d_ratio(&self, engine: EngineKind) -> f64 {
         self.outcome(EngineKind::Box2d).mean_ms / self.outcome(engine).mean_ms
     }
 }
@@ -90,11 +92,20 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
         "positions in f32 (build with `--features double` for f64; the far pyramid at \
          (1e5, 1e5) ran in f32)"
     };
+    let what = if ctx
+        .scenes
+        .trim_end_matches('/')
+        .ends_with("assets/scenes/suite")
+    {
+        "the suite of scene kinds".to_string()
+    } else {
+        format!("the scenes of `{}`", ctx.scenes)
+    };
     let _ = writeln!(
         s,
         "Written by `{}` (lab/peers/src/table.rs); do not edit by hand.\n\n\
-         # Ricochet against Box2D v3 and rapier2d on the suite of scene kinds\n\n\
-         Every scene of `assets/scenes/suite/` run in the three engines (Ricochet on one \
+         # Ricochet against Box2D v3 and rapier2d on {what}\n\n\
+         Every scene of `{}` run in the three engines (Ricochet on one \
          thread and on two), alternated: each of {} rounds runs every engine once on a \
          fresh build of the scene, the order rotated every round. Each step is timed from the first (start-up included, no \
          warm-up); a run's mean and median ms a step are taken, then the median of each \
@@ -134,6 +145,7 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
          `CoefficientCombineRule::Min` for restitution. Every pair gets Ricochet's \
          coefficients in every engine, exactly.\n",
         ctx.command,
+        ctx.scenes,
         ctx.rounds,
         ctx.machine,
         c.solver,
@@ -181,6 +193,7 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
             r.box2d_ratio(EngineKind::Ricochet2)
         );
     }
+    crate::families::table(&mut s, results);
     threads_table(&mut s, results);
     limit_table(&mut s, ctx, results);
     s
