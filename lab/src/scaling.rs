@@ -174,11 +174,14 @@ pub fn depth(levels: u64) -> String {
     s
 }
 
+/// A series: its name, its values and the scene of a value.
+type Series = (&'static str, &'static [u64], fn(u64) -> String);
+
 /// Writes every series' scenes into `dir`, `<series>-<value>.toml`; returns their paths.
 pub fn write(dir: &Path) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let mut written = Vec::new();
-    let series: [(&str, &[u64], fn(u64) -> String); 3] = [
+    let series: [Series; 3] = [
         ("count", &COUNTS, count),
         ("ratio", &RATIOS, ratio),
         ("depth", &DEPTHS, depth),
