@@ -284,6 +284,11 @@ pub fn chart(csv: &Path, png: &Path) -> Result<()> {
                 .y_desc("mean ms per step (whole run)")
                 .axis_desc_style(("sans-serif", 13))
                 .label_style(("sans-serif", 12))
+                .light_line_style(WHITE)
+                .x_labels(6)
+                .y_labels(6)
+                .x_label_formatter(&|v| format!("{v:.0}"))
+                .y_label_formatter(&|v| format!("{v:.2}"))
                 .draw()?;
             for (engine, colour) in engines {
                 let mut line: Vec<(f64, f64, bool)> = rows

@@ -43,7 +43,7 @@ pub fn table(s: &mut String, results: &[SceneResult]) {
     let names: Vec<&str> = EngineKind::ALL.iter().map(|e| e.name()).collect();
     let _ = writeln!(
         s,
-        "## Families\n\n\
+        "\n## Families\n\n\
          The scenes grouped by family (`<family>-<seed>`). Held: seeds whose every criterion \
          holds, per engine. Speed: Box2D's mean time a step over Ricochet's (one thread), \
          the median and the lowest over the seeds; \"where it holds\" counts only the seeds \
