@@ -11,6 +11,9 @@
 //! attacker takes every slot and the honest command goes unanswered; with it the
 //! attacker gets 8 and the honest command is answered.
 //!
+//! A second test does the same for local users on loopback: one user of the machine holds
+//! every slot without the rule, and at most 8 with it.
+//!
 //! Needs root and nftables (CI runs as root; `.ci/install` installs nftables). Every wait
 //! is bounded; the namespaces are removed when the test ends.
 
@@ -38,8 +41,9 @@ struct Namespaces {
 }
 
 impl Namespaces {
-    fn make() -> Result<Namespaces, String> {
-        let id = std::process::id() % 10_000;
+    /// The namespaces of test `tag` (each test of this file its own).
+    fn make(tag: u32) -> Result<Namespaces, String> {
+        let id = (std::process::id() * 2 + tag) % 10_000;
         let net = 100 + id % 150;
         let ns = Namespaces {
             server: format!("rss{id}"),
@@ -138,14 +142,15 @@ time.sleep(120)
 
 /// Starts the attacker in its namespace and returns it with how many sessions it holds.
 fn attack(ns: &Namespaces) -> (Running, usize) {
+    attack_from(&ns.attacker, &format!("tcp/{}:{PORT}", ns.to_attacker))
+}
+
+/// The attacker in namespace `ns`, connecting to `endpoint`, with how many sessions it
+/// holds.
+fn attack_from(ns: &str, endpoint: &str) -> (Running, usize) {
     let python = python().display().to_string();
-    let mut child = Namespaces::exec(&ns.attacker, &python)
-        .args([
-            "-c",
-            ATTACKER,
-            &format!("tcp/{}:{PORT}", ns.to_attacker),
-            &ATTACK.to_string(),
-        ])
+    let mut child = Namespaces::exec(ns, &python)
+        .args(["-c", ATTACKER, endpoint, &ATTACK.to_string()])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -168,9 +173,16 @@ fn attack(ns: &Namespaces) -> (Running, usize) {
 
 /// Whether the honest client's command is answered (within a bound).
 fn honest_answered(ns: &Namespaces) -> bool {
-    let mut child = Namespaces::exec(&ns.honest, &bin("ricochet").display().to_string())
-        .args(["--world", "slots", "--connect"])
-        .arg(format!("tcp/{}:{PORT}", ns.to_honest))
+    let ricochet = bin("ricochet").display().to_string();
+    let endpoint = format!("tcp/{}:{PORT}", ns.to_honest);
+    answered(Namespaces::exec(&ns.honest, &ricochet), &endpoint)
+}
+
+/// Whether `ricochet`'s command (`command`, the CLI and what starts it) to `endpoint` is
+/// answered (within a bound).
+fn answered(mut command: Process, endpoint: &str) -> bool {
+    let mut child = command
+        .args(["--world", "slots", "--connect", endpoint])
         .args(["send", "--timeout", "4", "deselect"])
         .env("RUST_LOG", "error")
         .stdout(Stdio::piped())
@@ -195,7 +207,7 @@ fn honest_answered(ns: &Namespaces) -> bool {
 
 #[test]
 fn one_address_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
-    let ns = match Namespaces::make() {
+    let ns = match Namespaces::make(0) {
         Ok(ns) => ns,
         Err(e) => panic!("cannot make the namespaces (the test needs root): {e}"),
     };
@@ -273,5 +285,104 @@ fn one_address_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
     assert!(
         honest_answered(&ns),
         "the honest client was not answered with the rule in place"
+    );
+}
+
+/// A user of the machine whose every connection comes from loopback: the shipped rule
+/// bounds each local user's connections (by the socket's owner, `meta skuid`) and leaves
+/// loopback out of the per-address bound, so one local user (here root, holding 20
+/// sessions from a Python process) cannot take every slot from another (uid 65534, the
+/// `ricochet` CLI). Without the rule the honest user's command goes unanswered.
+#[test]
+fn one_local_user_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
+    let ns = match Namespaces::make(1) {
+        Ok(ns) => ns,
+        Err(e) => panic!("cannot make the namespaces (the test needs root): {e}"),
+    };
+    let dir = temp_dir();
+    // The honest user's copy of the CLI, where uid 65534 may run it.
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(dir.path(), std::fs::Permissions::from_mode(0o755)).unwrap();
+    let cli = dir.path().join("ricochet");
+    std::fs::copy(bin("ricochet"), &cli).unwrap();
+    std::fs::set_permissions(&cli, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let endpoint = format!("tcp/127.0.0.1:{PORT}");
+    let honest = || {
+        let mut p = Namespaces::exec(&ns.server, "setpriv");
+        p.args(["--reuid=65534", "--regid=65534", "--clear-groups"])
+            .arg(&cli)
+            .env("HOME", dir.path());
+        answered(p, &endpoint)
+    };
+    let config = dir.path().join("server.json5");
+    std::fs::write(
+        &config,
+        format!(
+            r#"{{ mode: "peer", listen: {{ endpoints: ["tcp/127.0.0.1:{PORT}"] }},
+               scouting: {{ multicast: {{ enabled: false }} }},
+               transport: {{ unicast: {{ max_sessions: {MAX_SESSIONS} }} }} }}"#
+        ),
+    )
+    .unwrap();
+    let _server = Running(
+        Namespaces::exec(&ns.server, &bin("ricochet-server").display().to_string())
+            .args(["run", "--world", "slots", "--scene", &scene("impulse.toml")])
+            .arg("--config")
+            .arg(&config)
+            .env("RUST_LOG", "error")
+            .stdout(Stdio::null())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("ricochet-server starts"),
+    );
+    let began = Instant::now();
+    while !honest() {
+        assert!(
+            began.elapsed() < Duration::from_secs(60),
+            "the server never answered the honest user"
+        );
+    }
+
+    // No rule: root's process fills every slot.
+    let (attacker, held) = attack_from(&ns.server, &endpoint);
+    eprintln!("without the rule: the local attacker holds {held} sessions");
+    assert!(
+        held >= MAX_SESSIONS - 1,
+        "the attacker held {held} sessions of {MAX_SESSIONS}"
+    );
+    assert!(
+        !honest(),
+        "the honest user was answered with every slot taken"
+    );
+    drop(attacker);
+
+    let rule = std::fs::read_to_string(root().join("assets/firewall/sessions.nft"))
+        .unwrap()
+        .replace("7447", &PORT.to_string());
+    let rule_file = dir.path().join("sessions.nft");
+    std::fs::write(&rule_file, rule).unwrap();
+    sh(&[
+        "ip",
+        "netns",
+        "exec",
+        &ns.server,
+        "nft",
+        "-f",
+        &rule_file.display().to_string(),
+    ])
+    .expect("the shipped rule loads (nftables installed?)");
+    let began = Instant::now();
+    while !honest() {
+        assert!(
+            began.elapsed() < Duration::from_secs(60),
+            "the server never took a session again"
+        );
+    }
+    let (_attacker, held) = attack_from(&ns.server, &endpoint);
+    eprintln!("with the rule: the local attacker holds {held} sessions");
+    assert!(held <= 8, "the attacker held {held} sessions past the rule");
+    assert!(
+        honest(),
+        "the honest user was not answered with the rule in place"
     );
 }
