@@ -205,24 +205,20 @@ fn answered(mut command: Process, endpoint: &str) -> bool {
     }
 }
 
-#[test]
-fn one_address_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
-    let ns = match Namespaces::make(0) {
-        Ok(ns) => ns,
-        Err(e) => panic!("cannot make the namespaces (the test needs root): {e}"),
-    };
-    let dir = temp_dir();
-    let config = dir.path().join("server.json5");
+/// A real `ricochet-server` in the server's namespace, listening on `listen` with
+/// [`MAX_SESSIONS`] sessions at most (its config written into `dir`).
+fn serve(ns: &Namespaces, dir: &std::path::Path, listen: &str) -> Running {
+    let config = dir.join("server.json5");
     std::fs::write(
         &config,
         format!(
-            r#"{{ mode: "peer", listen: {{ endpoints: ["tcp/0.0.0.0:{PORT}"] }},
+            r#"{{ mode: "peer", listen: {{ endpoints: ["tcp/{listen}:{PORT}"] }},
                scouting: {{ multicast: {{ enabled: false }} }},
                transport: {{ unicast: {{ max_sessions: {MAX_SESSIONS} }} }} }}"#
         ),
     )
     .unwrap();
-    let _server = Running(
+    Running(
         Namespaces::exec(&ns.server, &bin("ricochet-server").display().to_string())
             .args(["run", "--world", "slots", "--scene", &scene("impulse.toml")])
             .arg("--config")
@@ -232,7 +228,36 @@ fn one_address_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
             .stderr(Stdio::inherit())
             .spawn()
             .expect("ricochet-server starts"),
-    );
+    )
+}
+
+/// Loads the shipped rule, on the test's port, in the server's namespace.
+fn load_rule(ns: &Namespaces, dir: &std::path::Path) {
+    let rule = std::fs::read_to_string(root().join("assets/firewall/sessions.nft"))
+        .unwrap()
+        .replace("7447", &PORT.to_string());
+    let rule_file = dir.join("sessions.nft");
+    std::fs::write(&rule_file, rule).unwrap();
+    sh(&[
+        "ip",
+        "netns",
+        "exec",
+        &ns.server,
+        "nft",
+        "-f",
+        &rule_file.display().to_string(),
+    ])
+    .expect("the shipped rule loads (nftables installed?)");
+}
+
+#[test]
+fn one_address_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
+    let ns = match Namespaces::make(0) {
+        Ok(ns) => ns,
+        Err(e) => panic!("cannot make the namespaces (the test needs root): {e}"),
+    };
+    let dir = temp_dir();
+    let _server = serve(&ns, dir.path(), "0.0.0.0");
     // Bounded: until the server answers the honest client.
     let began = Instant::now();
     while !honest_answered(&ns) {
@@ -256,21 +281,7 @@ fn one_address_cannot_take_every_session_slot_with_the_shipped_firewall_rule() {
     drop(attacker);
 
     // The shipped rule, on the test's port.
-    let rule = std::fs::read_to_string(root().join("assets/firewall/sessions.nft"))
-        .unwrap()
-        .replace("7447", &PORT.to_string());
-    let rule_file = dir.path().join("sessions.nft");
-    std::fs::write(&rule_file, rule).unwrap();
-    sh(&[
-        "ip",
-        "netns",
-        "exec",
-        &ns.server,
-        "nft",
-        "-f",
-        &rule_file.display().to_string(),
-    ])
-    .expect("the shipped rule loads (nftables installed?)");
+    load_rule(&ns, dir.path());
     // The attacker's old sessions closed: the server takes new ones again.
     let began = Instant::now();
     while !honest_answered(&ns) {
@@ -314,27 +325,7 @@ fn one_local_user_cannot_take_every_session_slot_with_the_shipped_firewall_rule(
             .env("HOME", dir.path());
         answered(p, &endpoint)
     };
-    let config = dir.path().join("server.json5");
-    std::fs::write(
-        &config,
-        format!(
-            r#"{{ mode: "peer", listen: {{ endpoints: ["tcp/127.0.0.1:{PORT}"] }},
-               scouting: {{ multicast: {{ enabled: false }} }},
-               transport: {{ unicast: {{ max_sessions: {MAX_SESSIONS} }} }} }}"#
-        ),
-    )
-    .unwrap();
-    let _server = Running(
-        Namespaces::exec(&ns.server, &bin("ricochet-server").display().to_string())
-            .args(["run", "--world", "slots", "--scene", &scene("impulse.toml")])
-            .arg("--config")
-            .arg(&config)
-            .env("RUST_LOG", "error")
-            .stdout(Stdio::null())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .expect("ricochet-server starts"),
-    );
+    let _server = serve(&ns, dir.path(), "127.0.0.1");
     let began = Instant::now();
     while !honest() {
         assert!(
@@ -356,21 +347,7 @@ fn one_local_user_cannot_take_every_session_slot_with_the_shipped_firewall_rule(
     );
     drop(attacker);
 
-    let rule = std::fs::read_to_string(root().join("assets/firewall/sessions.nft"))
-        .unwrap()
-        .replace("7447", &PORT.to_string());
-    let rule_file = dir.path().join("sessions.nft");
-    std::fs::write(&rule_file, rule).unwrap();
-    sh(&[
-        "ip",
-        "netns",
-        "exec",
-        &ns.server,
-        "nft",
-        "-f",
-        &rule_file.display().to_string(),
-    ])
-    .expect("the shipped rule loads (nftables installed?)");
+    load_rule(&ns, dir.path());
     let began = Instant::now();
     while !honest() {
         assert!(

@@ -52,17 +52,15 @@ fn interact(s: &mut String, a: &str, b: &str) {
     let _ = writeln!(s, "[[interact]]\na = \"{a}\"\nb = \"{b}\"\n");
 }
 
-/// `n` boxes 0.5 wide in 10 rows on the ground, 0.01 apart side by side.
-pub fn count(n: u64) -> String {
-    let rows = 10u64;
-    let cols = n.div_ceil(rows);
-    let width = cols as f64 * 0.51;
+/// A pile's scene up to its boxes: gravity, the criteria of a pile at rest, and the
+/// ground, `width` either side of 0, the bounds up to `top`.
+fn pile(note: &str, width: f64, top: f64) -> String {
     let mut s = String::new();
     header(
         &mut s,
-        &format!("{n} boxes 0.5 wide resting in 10 rows on the ground"),
+        note,
         -10.0,
-        [-width, -2.0, width, 20.0],
+        [-width, -2.0, width, top],
         "steps = 300\ndrift = 0.05\nfinal_overlap = 0.01",
     );
     rect(
@@ -72,6 +70,19 @@ pub fn count(n: u64) -> String {
         [width * 2.0, 2.0],
         [0.0, -1.0],
         0.0,
+    );
+    s
+}
+
+/// `n` boxes 0.5 wide in 10 rows on the ground, 0.01 apart side by side.
+pub fn count(n: u64) -> String {
+    let rows = 10u64;
+    let cols = n.div_ceil(rows);
+    let width = cols as f64 * 0.51;
+    let mut s = pile(
+        &format!("{n} boxes 0.5 wide resting in 10 rows on the ground"),
+        width,
+        20.0,
     );
     let mut k = 0;
     'rows: for row in 0..rows {
@@ -137,21 +148,10 @@ pub fn ratio(ratio: u64) -> String {
 /// A pyramid of `levels` levels of unit boxes on the ground.
 pub fn depth(levels: u64) -> String {
     let width = levels as f64 + 4.0;
-    let mut s = String::new();
-    header(
-        &mut s,
+    let mut s = pile(
         &format!("a pyramid of {levels} levels of unit boxes"),
-        -10.0,
-        [-width, -2.0, width, levels as f64 + 4.0],
-        "steps = 300\ndrift = 0.05\nfinal_overlap = 0.01",
-    );
-    rect(
-        &mut s,
-        "ground",
-        "ground",
-        [width * 2.0, 2.0],
-        [0.0, -1.0],
-        0.0,
+        width,
+        levels as f64 + 4.0,
     );
     let mut k = 0;
     for level in 0..levels {
