@@ -104,7 +104,8 @@ pub(super) fn integrate_positions(
         pushed.clear();
         pushed.resize(sb.len(), false);
         for c in buckets.iter().flatten() {
-            if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 || c.bounced {
+            // A bounce moves its bodies in flight: the collision stage timed it.
+            if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
                 pushed[c.a as usize] = true;
                 pushed[c.b as usize] = true;
             }
@@ -160,7 +161,9 @@ pub(super) fn relax(
 /// speed down at the time it arrived). A body's velocity changed at `t` moves it for
 /// `h - t` only: the difference goes to its pseudo-velocity, so a ball that meets a wall
 /// in mid-step ends where it would had it bounced there. With restitution 1 each collision
-/// keeps its two bodies' energy.
+/// keeps its two bodies' energy. `before_gain`: bodies in flight move by their velocity
+/// before the sub-step's gain (exact or explicit flight), not after it (symplectic Euler).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn collisions(
     sb: &mut [SolverBody],
     gain: &[DVec2],
@@ -168,6 +171,7 @@ pub(super) fn collisions(
     met: &mut Vec<f64>,
     h: f64,
     most: u32,
+    before_gain: bool,
     report: &mut ImpulseReport,
 ) {
     met.clear();
@@ -197,19 +201,21 @@ pub(super) fn collisions(
                 continue;
             }
             let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
-            // The pair's relative acceleration along the normal. The sub-step moves the
-            // bodies by the velocity after its gain (symplectic Euler), so the approach
-            // is taken from it: taken from the velocity before the gain, a ball bouncing
-            // on the ground under gravity lost `v g h / 2` of energy at every bounce.
+            // The pair's relative acceleration along the normal, and the approach the
+            // sub-step moves it by: under symplectic Euler the velocity after the gain
+            // (taken from the velocity before it, a ball bouncing on the ground under
+            // gravity lost `v g h / 2` of energy at every bounce); in exact or explicit
+            // flight the velocity before it.
             let an = (gain_of(b) - gain_of(a)).dot(c.normal);
+            let v0 = if before_gain { vn - an * h } else { vn };
             // When within the sub-step it meets (0: touching), and how fast.
             let (free, impact) = if gap > 0.0 {
-                let impact = -(vn * vn - 2.0 * an * gap).max(0.0).sqrt();
-                // The root of `gap + vn t + an t^2 / 2 = 0`, in the form that stays exact
+                let impact = -(v0 * v0 - 2.0 * an * gap).max(0.0).sqrt();
+                // The root of `gap + v0 t + an t^2 / 2 = 0`, in the form that stays exact
                 // when `an` is small (infinite when the pair never meets).
-                (2.0 * gap / (-vn - impact), impact)
+                (2.0 * gap / (-v0 - impact), impact)
             } else {
-                (0.0, vn)
+                (0.0, v0)
             };
             let t = free.max(met[a]).max(met[b]);
             let meets = t <= h;
@@ -228,7 +234,8 @@ pub(super) fn collisions(
             } else {
                 (-e * vn, 0.0)
             };
-            let jn = c.mass * (target - vn);
+            // Never pulling (a pair whose acceleration outruns its bounce).
+            let jn = (c.mass * (target - vn)).max(0.0);
             // Friction within the Coulomb cone of the collision's impulse.
             let t_dir = DVec2::new(-c.normal.y, c.normal.x);
             let limit = c.friction * jn;
