@@ -446,8 +446,8 @@ pub fn solve_frame(
             clock.lap(times.as_mut().map(|t| &mut t.warm_start));
             if found.bouncing {
                 let most = params.iterations + params.adaptive_iterations;
-                let before_gain = params.flight.gravity_share().is_some();
-                passes::collisions(sb, gain, buckets, met, h, most, before_gain, &mut report);
+                let flight = params.flight.gravity_share();
+                passes::collisions(sb, gain, buckets, met, h, most, flight, &mut report);
             }
             clock.lap(times.as_mut().map(|t| &mut t.restitution));
             passes::solve(

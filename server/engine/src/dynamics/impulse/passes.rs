@@ -161,8 +161,9 @@ pub(super) fn relax(
 /// speed down at the time it arrived). A body's velocity changed at `t` moves it for
 /// `h - t` only: the difference goes to its pseudo-velocity, so a ball that meets a wall
 /// in mid-step ends where it would had it bounced there. With restitution 1 each collision
-/// keeps its two bodies' energy. `before_gain`: bodies in flight move by their velocity
-/// before the sub-step's gain (exact or explicit flight), not after it (symplectic Euler).
+/// keeps its two bodies' energy. `flight`: the share of the gain bodies in flight move by
+/// in closed form (exact 1/2, explicit 0: [`Integrator::gravity_share`]), from their
+/// velocity before the sub-step's gain; `None`: by the velocity after it (symplectic).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn collisions(
     sb: &mut [SolverBody],
@@ -171,7 +172,7 @@ pub(super) fn collisions(
     met: &mut Vec<f64>,
     h: f64,
     most: u32,
-    before_gain: bool,
+    flight: Option<f64>,
     report: &mut ImpulseReport,
 ) {
     met.clear();
@@ -207,7 +208,7 @@ pub(super) fn collisions(
             // gravity lost `v g h / 2` of energy at every bounce); in exact or explicit
             // flight the velocity before it.
             let an = (gain_of(b) - gain_of(a)).dot(c.normal);
-            let v0 = if before_gain { vn - an * h } else { vn };
+            let v0 = if flight.is_some() { vn - an * h } else { vn };
             // When within the sub-step it meets (0: touching), and how fast.
             let (free, impact) = if gap > 0.0 {
                 let impact = -(v0 * v0 - 2.0 * an * gap).max(0.0).sqrt();
@@ -218,7 +219,16 @@ pub(super) fn collisions(
                 (0.0, v0)
             };
             let t = free.max(met[a]).max(met[b]);
-            let meets = t <= h;
+            // Where the sub-step's move leaves the pair without a collision: in flight
+            // (`flight`'s closed form), or by the velocity after the gain.
+            let rest = gap + vn * h - flight.map_or(0.0, |share| (1.0 - share) * an * h * h);
+            // The passes let a pair found apart close its gap within the sub-step when its
+            // velocity would carry it there: it meets within the sub-step then, at its end
+            // if its flight falls short (by rounding, or by a gain that curves it away).
+            // Left to the passes, it would land with the approach they clamp it to (less
+            // by up to `an h / 2` in exact flight), and bounce with that.
+            let closes = c.speculative && gap > 0.0 && -vn * h >= gap;
+            let meets = t <= h || closes;
             // A pair the passes would let close its gap bounces in the sub-step it meets;
             // one too slow at impact does not bounce.
             if (c.speculative && gap > 0.0 && !meets)
@@ -230,6 +240,7 @@ pub(super) fn collisions(
             // Apart at `-e impact` from `t` on, under the pair's acceleration. A pair that
             // stays a hair apart (nearer than the passes let close) turns where it is.
             let (target, t) = if meets {
+                let t = t.min(h);
                 (-e * impact + an * (h - t), t)
             } else {
                 (-e * vn, 0.0)
@@ -241,15 +252,21 @@ pub(super) fn collisions(
             let limit = c.friction * jn;
             let jt = (-c.mass * (bb.vel - ba.vel).dot(t_dir)).clamp(-limit, limit);
             let p = c.normal * jn + t_dir * jt;
-            // The change moves each body from `t` on only.
+            // The change moves each body from `t` on only; a pair whose flight ends the
+            // sub-step short of meeting (it meets at its end) closes the rest of its gap.
             let late = t / h;
+            let short = if free > h && rest > 0.0 {
+                c.normal * (c.mass * rest / h)
+            } else {
+                DVec2::ZERO
+            };
             bodies.update(a, |s| {
                 s.vel -= p * ba.inv_mass;
-                s.pseudo += p * (ba.inv_mass * late);
+                s.pseudo += (p * late + short) * ba.inv_mass;
             });
             bodies.update(b, |s| {
                 s.vel += p * bb.inv_mass;
-                s.pseudo -= p * (bb.inv_mass * late);
+                s.pseudo -= (p * late + short) * bb.inv_mass;
             });
             // A static body's velocity never changes: its collisions set no time.
             if ba.inv_mass > 0.0 {
