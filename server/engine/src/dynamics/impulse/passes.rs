@@ -252,10 +252,11 @@ pub(super) fn collisions(
             let limit = c.friction * jn;
             let jt = (-c.mass * (bb.vel - ba.vel).dot(t_dir)).clamp(-limit, limit);
             let p = c.normal * jn + t_dir * jt;
-            // The change moves each body from `t` on only; a pair whose flight ends the
-            // sub-step short of meeting (it meets at its end) closes the rest of its gap.
+            // The change moves each body from `t` on only. A pair whose path does not
+            // meet within the sub-step (it meets at its end) ends it touching, as the
+            // passes would have left it: its move takes the rest of its gap too.
             let late = t / h;
-            let short = if free > h && rest > 0.0 {
+            let short = if meets && free > h {
                 c.normal * (c.mass * rest / h)
             } else {
                 DVec2::ZERO
