@@ -3,8 +3,9 @@
 //! boxes too large to bin (they would fill too many cells).
 //!
 //! In: slots (body indices) with their boxes. Out: the slots whose cells a box touches.
-//! The persistent pair set (`dynamics::pairs`) inserts and removes moving bodies in it;
-//! the static grid of a large all-static group (`dynamics::broad_phase`) builds it once.
+//! The static grid of a large all-static group (`dynamics::broad_phase`) builds it once
+//! (the persistent pair set keeps its boxes in a dynamic tree, `geometry::tree`, where a
+//! large or fast body costs one leaf, not the cells it covers).
 //! (The particle pass keeps its own dense, frozen layout of the few shapes particles hit,
 //! `particles::system::ShapeGrid`: a point lookup there is an array index, not a hash.)
 
