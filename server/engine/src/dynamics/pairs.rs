@@ -2,28 +2,29 @@
 //! step.
 //!
 //! Every body of a group that a resolving interaction names gets a *fat box*: its bounding
-//! box grown by a margin. Fat boxes live in a dynamic tree ([`Tree`]), and the candidate
-//! pairs are the pairs of eligible bodies whose fat boxes overlap. A step looks only at
-//! the bodies that move: one whose box (grown by how far it may travel this step) still
-//! fits in its fat box changes nothing; one that left it gets a new fat box, is moved in
-//! the tree and looks for new neighbours there. A resting pile of thousands of bodies
-//! costs one containment test per body; static bodies cost nothing at all until the
-//! layout changes (bodies added, removed or moved by hand, interactions declared), which
-//! rebuilds the set. In the tree a body costs what it overlaps, whatever its size: one
-//! large body among small ones is one leaf, not the area it covers.
+//! box grown by a margin. Fat boxes live in an index of two tiers ([`Tiered`]): a uniform
+//! grid for those that cover a few of its cells, a dynamic tree for the others (a large
+//! body among small ones, a small one thrown fast), where a body costs what it overlaps,
+//! not the area it covers. The candidate pairs are the pairs of eligible bodies whose fat
+//! boxes overlap. A step looks only at the bodies that move: one whose box (grown by how
+//! far it may travel this step) still fits in its fat box changes nothing; one that left
+//! it gets a new fat box, is moved in the index and looks for new neighbours there. A
+//! resting pile of thousands of bodies costs one containment test per body; static
+//! bodies cost nothing at all until the layout changes (bodies added, removed or moved by
+//! hand, interactions declared), which rebuilds the set.
 //!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
 //! is deterministic: the pairs are exactly the eligible pairs whose fat boxes overlap,
-//! whatever the shape of the tree. They live in [`Contacts`], the one home of the
-//! solver's pairs and their warm starts whatever the broad phase: the pair set keeps them
-//! up to date in place, the other broad phases refill them each step
+//! whatever a body's tier or the tree's shape. They live in [`Contacts`], the one home of
+//! the solver's pairs and their warm starts whatever the broad phase: the pair set keeps
+//! them up to date in place, the other broad phases refill them each step
 //! ([`Contacts::refill`]).
 
 use glam::DVec2;
 
 use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
-use crate::geometry::tree::Tree;
+use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
@@ -110,27 +111,24 @@ impl Contacts {
 struct Fat {
     min: DVec2,
     max: DVec2,
-    /// Whether the body is in the tree (in a resolving interaction).
+    /// Whether the body is in the index (in a resolving interaction).
     placed: bool,
 }
 
-/// The tree that keeps the candidate pairs of every resolving interaction (in
+/// The index of fat boxes that keeps the candidate pairs of every resolving interaction (in
 /// [`Contacts`]) from step to step.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PairSet {
     /// The world layout revision the set was built for.
     revision: Option<u64>,
     fat: Vec<Fat>,
-    /// The fat boxes of the placed bodies. Not saved: a restored set builds it again from
-    /// `fat` (what a query finds does not depend on the tree's shape).
+    /// The side of the grid's cells (twice the typical moving body).
+    cell: f64,
+    /// The fat boxes of the placed bodies: a grid of cells of side `cell` for those that
+    /// cover a few of them, a tree for the others. Not saved: a restored set builds it
+    /// again from `fat` (what a query finds does not depend on the tree's shape).
     #[serde(skip)]
-    tree: Tree,
-    /// Each placed body's leaf in the tree.
-    #[serde(skip)]
-    leaf: Vec<u32>,
-    /// The tree's query stack.
-    #[serde(skip)]
-    stack: Vec<u32>,
+    index: Tiered,
     /// Which group pairs resolve (row-major, `groups x groups`).
     resolves: Vec<bool>,
     groups: usize,
@@ -156,6 +154,13 @@ fn fixed(body: &Body) -> bool {
     body.is_static() && body.asleep.is_none()
 }
 
+/// Whether bodies `i` and `j` make a candidate pair: two bodies, not both static for
+/// good, of groups that resolve (`resolves`, row-major, `groups x groups`).
+fn eligible(resolves: &[bool], groups: usize, bodies: &[Body], i: u32, j: u32) -> bool {
+    let (p, q) = (&bodies[i as usize], &bodies[j as usize]);
+    i != j && !(fixed(p) && fixed(q)) && resolves[p.group as usize * groups + q.group as usize]
+}
+
 fn overlap(p: &Fat, q: &Fat) -> bool {
     p.min.x <= q.max.x && q.min.x <= p.max.x && p.min.y <= q.max.y && q.min.y <= p.max.y
 }
@@ -179,7 +184,7 @@ impl PairSet {
             self.rebuild(pairs, bodies, revision, resolving, dt);
             return;
         }
-        if self.leaf.len() != self.fat.len() {
+        if self.index.capacity() != self.fat.len() {
             self.reindex();
         }
         self.moved.clear();
@@ -198,15 +203,16 @@ impl PairSet {
             {
                 continue;
             }
-            self.tree.remove(self.leaf[i as usize]);
+            self.index.remove(i, f.min, f.max);
             self.place(bodies, i, dt);
             let Fat { min, max, .. } = self.fat[i as usize];
-            self.leaf[i as usize] = self.tree.insert(i, min, max);
+            self.index.insert(i, min, max);
             self.moved.push(i);
         }
         if self.moved.is_empty() {
             return;
         }
+        self.index.flush();
         self.reinserted += self.moved.len() as u64;
         let fat = &self.fat;
         pairs.retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
@@ -243,6 +249,12 @@ impl PairSet {
                 ),
             );
         }
+        if !(self.cell.is_finite() && self.cell >= 1e-9) {
+            return bad(
+                "cell",
+                format!("{} is not a finite size of at least 1e-9", self.cell),
+            );
+        }
         for (i, f) in self.fat.iter().enumerate() {
             if !f.placed {
                 continue;
@@ -266,21 +278,22 @@ impl PairSet {
         Ok(())
     }
 
-    /// The first body in the tree (for tests).
+    /// The first body in the index (for tests).
     #[cfg(test)]
     pub(crate) fn first_placed(&self) -> Option<usize> {
         self.fat.iter().position(|f| f.placed)
     }
 
-    /// Builds the tree again from the fat boxes (a set restored from a checkpoint).
+    /// Builds the index again from the fat boxes (after a rebuild, or in a set restored
+    /// from a checkpoint).
     fn reindex(&mut self) {
-        let boxes: Vec<(u32, DVec2, DVec2)> = (self.fat.iter().enumerate())
-            .filter(|(_, f)| f.placed)
-            .map(|(i, f)| (i as u32, f.min, f.max))
-            .collect();
-        self.leaf.clear();
-        self.leaf.resize(self.fat.len(), u32::MAX);
-        self.tree.build(&boxes, &mut self.leaf);
+        self.index.reset(self.cell, self.fat.len());
+        for (i, f) in self.fat.iter().enumerate() {
+            if f.placed {
+                self.index.insert(i as u32, f.min, f.max);
+            }
+        }
+        self.index.flush();
     }
 
     /// Makes the next update rebuild the set: `Contacts` were filled by another broad
@@ -322,6 +335,18 @@ impl PairSet {
             let g = b.group as usize;
             g < self.groups && (0..self.groups).any(|h| self.resolves[g * self.groups + h])
         };
+        // Cells about twice the typical moving body (static ones may be huge floors).
+        let mean_half = |keep: &dyn Fn(&Body) -> bool| {
+            let halves: Vec<f64> = bodies
+                .iter()
+                .filter(|b| in_play(b) && keep(b))
+                .map(|b| b.shape.half_extents().max_element())
+                .collect();
+            (!halves.is_empty()).then(|| halves.iter().sum::<f64>() / halves.len() as f64)
+        };
+        self.cell = mean_half(&|b| !fixed(b))
+            .or_else(|| mean_half(&|_| true))
+            .map_or(1.0, |h| (4.0 * h).max(1e-9));
         let play: Vec<bool> = bodies.iter().map(in_play).collect();
         self.fat.clear();
         self.fat.resize(
@@ -360,7 +385,7 @@ impl PairSet {
         }
     }
 
-    /// Gives body `i` a fat box around where it is now (the caller puts it in the tree).
+    /// Gives body `i` a fat box around where it is now (the caller puts it in the index).
     fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
         let body = &bodies[i as usize];
         let Aabb { min, max } = Aabb::of(&body.shape, body.pos);
@@ -378,13 +403,6 @@ impl PairSet {
         };
     }
 
-    fn eligible(&self, bodies: &[Body], i: u32, j: u32) -> bool {
-        let (p, q) = (&bodies[i as usize], &bodies[j as usize]);
-        i != j
-            && !(fixed(p) && fixed(q))
-            && self.resolves[p.group as usize * self.groups + q.group as usize]
-    }
-
     /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap, each once: a
     /// pair of two searched bodies from the smaller's search.
     fn neighbours(&mut self, bodies: &[Body], i: u32) {
@@ -392,17 +410,18 @@ impl PairSet {
         if !fi.placed {
             return;
         }
-        let mut found = std::mem::take(&mut self.found);
-        let mut stack = std::mem::take(&mut self.stack);
-        self.tree.query(fi.min, fi.max, &mut stack, |j| {
-            if (j < i && self.searching[j as usize]) || !self.eligible(bodies, i, j) {
+        let (fat, searching, found) = (&self.fat, &self.searching, &mut self.found);
+        let (resolves, groups) = (&self.resolves, self.groups);
+        self.index.query(fi.min, fi.max, |j| {
+            if (j < i && searching[j as usize])
+                || !overlap(&fi, &fat[j as usize])
+                || !eligible(resolves, groups, bodies, i, j)
+            {
                 return;
             }
             let (a, b) = (i.min(j), i.max(j));
             found.push(u64::from(a) << 32 | u64::from(b));
         });
-        self.found = found;
-        self.stack = stack;
     }
 
     /// Adds the pairs in `found` that are not kept yet, keeping `pairs` sorted.
@@ -520,7 +539,11 @@ mod tests {
         for i in 0..bodies.len() as u32 {
             for j in i + 1..bodies.len() as u32 {
                 let (p, q) = (&set.fat[i as usize], &set.fat[j as usize]);
-                if p.placed && q.placed && overlap(p, q) && set.eligible(bodies, i, j) {
+                if p.placed
+                    && q.placed
+                    && overlap(p, q)
+                    && eligible(&set.resolves, set.groups, bodies, i, j)
+                {
                     out.push((i, j));
                 }
             }
@@ -620,7 +643,9 @@ mod tests {
             restored.update(&mut again, &bodies, 1, &resolving, &movers, dt);
             assert_eq!(contacts.pairs, again.pairs);
         }
-        assert_eq!(restored.tree.len(), 31);
+        assert_eq!(restored.index.capacity(), 31);
+        // The floor and the thrown bodies cover more cells than the grid keeps.
+        assert!(restored.index.in_tree() > 1);
     }
 
     #[test]
