@@ -353,6 +353,18 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         Some(end),
         "the fork starts at the frame it was forked at"
     );
+    // The same strike in both, so both move (a world at rest holds the same bits under
+    // any number of sub-steps).
+    for world in [&client, &forked] {
+        let reply = world_command(
+            world,
+            Action::Impulse {
+                body: "cue".into(),
+                impulse: [-40.0, 7.0],
+            },
+        );
+        assert!(reply.ok, "{:?}", reply.error);
+    }
     let fork_end = step(&forked, 60);
     assert_eq!(step(&client, 60), fork_end);
     let (a, b) = (
