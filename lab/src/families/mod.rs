@@ -238,18 +238,18 @@ mod held {
     /// are run and reported by `ricochet-lab families` (docs/bench/families.md) until the
     /// engine holds them.
     #[test]
-    fn the_default_holds_the_bullet_family_at_fixed_seeds() {
+    fn the_default_holds_the_bullet_and_elastic_families_at_fixed_seeds() {
         let dir = tempfile::tempdir().unwrap();
         let progress = indicatif::ProgressBar::hidden();
         let runs = run(
-            &[Family::Bullets],
-            0..6,
+            &[Family::Bullets, Family::Elastic],
+            0..8,
             &[("the default".to_string(), Vec::new())],
             dir.path(),
             &progress,
         )
         .unwrap();
-        assert_eq!(runs.len(), 6);
+        assert_eq!(runs.len(), 16);
         for r in &runs {
             assert!(r.row.holds, "{}: {}", r.file.display(), r.row.criteria);
         }

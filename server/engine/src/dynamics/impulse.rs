@@ -7,12 +7,20 @@
 //! visits every contact once and applies the normal impulse that brings the bodies'
 //! normal velocity to its target, accumulating it and clamping the sum at zero (contacts
 //! push, never pull), then a Coulomb friction impulse clamped by `friction x normal
-//! impulse`. The target is the restitution bounce for an approach faster than
-//! [`RESTITUTION_SPEED`], plus a Baumgarte bias that removes `baumgarte` of the
-//! penetration beyond the slop per sub-step. Impulses are kept between steps (on the pair
+//! impulse`. The target is a Baumgarte bias that removes `baumgarte` of the penetration
+//! beyond the slop per sub-step. Impulses are kept between steps (on the pair
 //! of bodies, in [`super::pairs::Contacts`]) and applied first next step: warm starting,
 //! which lets stacks and pyramids settle in a few iterations. Positions move only by
 //! velocity, after each sub-step's solve.
+//!
+//! Bouncing is a stage of its own, before the passes of each sub-step ([`collisions`]):
+//! every contact of a bouncing pair that touches, or meets within the sub-step, and
+//! approaches faster than its [`bounce_speed`], is a collision of two bodies, resolved
+//! alone (`v_n' = -e v_n`), contact after contact, pass after pass, until none approaches
+//! (in the manner of Guendelman, Bridson and Fedkiw's collision stage). A collision of
+//! restitution 1 keeps the energy of its two bodies exactly, so a row of touching balls
+//! hands its first ball's speed down to the last, and a gas of elastic circles keeps its
+//! energy, where solving every contact at once shares the speed out and loses it.
 //!
 //! Shapes do not rotate, so one contact per pair carries all of it.
 //!
@@ -40,8 +48,25 @@ pub const MAX_PUSH_OUT: f64 = 1.0;
 /// stacks of touching bodies still.
 pub const SPECULATIVE_GAP: f64 = 0.02;
 
-/// Approaches slower than this (units/s) do not bounce: resting contacts stay at rest.
+/// Approaches slower than this (units/s) do not bounce where a body of the pair is
+/// accelerated (by gravity): a resting contact gains about `g h` of approach every
+/// sub-step, and must stay at rest.
 pub const RESTITUTION_SPEED: f64 = 1.0;
+
+/// Where neither body of a pair is accelerated, approaches slower than this many sizes of
+/// the smaller body a second do not bounce: nothing presses a resting contact there, and a
+/// slow collision of an elastic gas keeps its energy.
+pub const RESTING_BOUNCE: f64 = 1e-3;
+
+/// The approach below which a pair does not bounce: [`RESTITUTION_SPEED`] when a body of
+/// it is accelerated, [`RESTING_BOUNCE`] sizes a second otherwise.
+pub fn bounce_speed(accelerated: bool, size: f64) -> f64 {
+    if accelerated {
+        RESTITUTION_SPEED
+    } else {
+        RESTING_BOUNCE * size
+    }
+}
 
 /// Contacts found approaching or separating faster than this (units/s) are impacts: they
 /// start cold, not from the last step's impulse, which belonged to another state.
@@ -122,8 +147,10 @@ struct Contact {
     gap: f64,
     /// Penetration left alone.
     slop: f64,
-    /// Normal velocity of the restitution bounce (0 for a resting contact).
-    bounce: f64,
+    /// The pair's restitution (the smaller of the two; 0: the contact never bounces).
+    restitution: f32,
+    /// Approaches slower than this do not bounce (units/s; see [`bounce_speed`]).
+    bounce_speed: f32,
     /// Cap of the position bias velocity.
     max_push: f64,
     normal_impulse: f64,
@@ -136,6 +163,8 @@ struct Contact {
     speculative: bool,
     /// One of the two bodies is static (soft contacts are stiffer there).
     fixed: bool,
+    /// It bounced in the frame (its bodies count as collided).
+    bounced: bool,
 }
 
 /// How one pass pushes touching contacts apart.
@@ -237,6 +266,9 @@ pub struct SolverBuffers {
     /// Bodies a contact pushed in the sub-step (exact flight only).
     #[serde(skip)]
     pushed: Vec<bool>,
+    /// When in the sub-step each body last collided (the collision stage's).
+    #[serde(skip)]
+    met: Vec<f64>,
     /// Where the frame's time went, stage by stage, when the world is profiled (`None`:
     /// no clock is read).
     #[serde(skip)]
@@ -278,7 +310,7 @@ pub struct SolveTimes {
     pub integrate_positions: Duration,
     /// The unbiased (relax) passes.
     pub relax: Duration,
-    /// Restitution applied to the contacts that bounce.
+    /// The collisions of the contacts that bounce.
     pub restitution: Duration,
     /// Impulses, velocities and positions stored back in the world's bodies.
     pub store: Duration,
@@ -393,6 +425,7 @@ pub fn solve_frame(
             buckets,
             pushed,
             slotted,
+            met,
             ..
         } = &mut *buffers;
         if let Some(up) = params.rest_load {
@@ -403,7 +436,6 @@ pub fn solve_frame(
         // The change under which a pass has converged, in the units of the smallest
         // contact.
         let converged = CONVERGED_CHANGE * found.smallest;
-        let mut bouncing = found.bouncing;
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
             passes::integrate_velocities(sb, gain, h);
@@ -412,6 +444,12 @@ pub fn solve_frame(
                 passes::warm_start(team, sb, buckets);
             }
             clock.lap(times.as_mut().map(|t| &mut t.warm_start));
+            if found.bouncing {
+                let most = params.iterations + params.adaptive_iterations;
+                let flight = params.flight.gravity_share();
+                passes::collisions(sb, gain, buckets, met, h, most, flight, &mut report);
+            }
+            clock.lap(times.as_mut().map(|t| &mut t.restitution));
             passes::solve(
                 team,
                 sb,
@@ -430,10 +468,6 @@ pub fn solve_frame(
             clock.lap(times.as_mut().map(|t| &mut t.integrate_positions));
             passes::relax(team, sb, buckets, &params, h, last_step, &mut report);
             clock.lap(times.as_mut().map(|t| &mut t.relax));
-            if bouncing {
-                bouncing = passes::restitution(sb, buckets);
-            }
-            clock.lap(times.as_mut().map(|t| &mut t.restitution));
         }
     }
     let SolverBuffers {

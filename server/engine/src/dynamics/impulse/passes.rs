@@ -104,6 +104,7 @@ pub(super) fn integrate_positions(
         pushed.clear();
         pushed.resize(sb.len(), false);
         for c in buckets.iter().flatten() {
+            // A bounce moves its bodies in flight: the collision stage timed it.
             if c.normal_impulse > 0.0 || c.pseudo_impulse > 0.0 {
                 pushed[c.a as usize] = true;
                 pushed[c.b as usize] = true;
@@ -146,26 +147,142 @@ pub(super) fn relax(
     }
 }
 
-/// Restitution, once, for contacts that pushed: after the move, the normal velocity
-/// becomes the bounce of the approach speed the contact was found with (as Box2D applies
-/// it), so a contact that caught a body early still bounces it fully. Returns whether a
-/// contact is still to bounce (it has not pushed yet).
-pub(super) fn restitution(sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) -> bool {
-    let mut bouncing = false;
+/// The collision stage of a sub-step, before its passes: every contact of a bouncing pair
+/// that touches, or meets within the sub-step `h`, and approaches faster than its bounce
+/// speed, is resolved as a collision of its two bodies alone: the normal velocity becomes
+/// `-e` times the approach at impact (for a pair still apart, what it closes at under its
+/// bodies' gains: `v_i^2 = v^2 - 2 a s`). Contact after contact, pass after pass until none
+/// approaches or `most` passes ran (forward and backward in turn), each counted in
+/// `report`; friction within the Coulomb
+/// cone of the collision's impulse.
+///
+/// A collision has a time within the sub-step: when its pair meets, and no earlier than
+/// the last collision of either body (`met`, reused: a row of balls passes the first one's
+/// speed down at the time it arrived). A body's velocity changed at `t` moves it for
+/// `h - t` only: the difference goes to its pseudo-velocity, so a ball that meets a wall
+/// in mid-step ends where it would had it bounced there. With restitution 1 each collision
+/// keeps its two bodies' energy. `flight`: the share of the gain bodies in flight move by
+/// in closed form (exact 1/2, explicit 0: [`Integrator::gravity_share`]), from their
+/// velocity before the sub-step's gain; `None`: by the velocity after it (symplectic).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn collisions(
+    sb: &mut [SolverBody],
+    gain: &[DVec2],
+    buckets: &mut [Vec<Contact>],
+    met: &mut Vec<f64>,
+    h: f64,
+    most: u32,
+    flight: Option<f64>,
+    report: &mut ImpulseReport,
+) {
+    met.clear();
+    met.resize(sb.len(), 0.0);
     let bodies = Bodies::new(sb);
-    for c in buckets.iter_mut().flatten() {
-        if c.bounce > 0.0 && c.normal_impulse > 0.0 {
+    let gain_of = |k: usize| gain.get(k).copied().unwrap_or(DVec2::ZERO);
+    for pass in 0..most.max(1) {
+        report.passes += 1;
+        let mut any = false;
+        // Forward and backward in turn: a collision running down a row against the
+        // contacts' order passes in one pass, not one contact a pass.
+        let contacts = buckets.iter_mut().flat_map(|b| b.iter_mut());
+        let contacts: Box<dyn Iterator<Item = &mut Contact>> = if pass % 2 == 0 {
+            Box::new(contacts)
+        } else {
+            Box::new(contacts.rev())
+        };
+        for c in contacts {
+            if c.restitution <= 0.0 {
+                continue;
+            }
             let (a, b) = (c.a as usize, c.b as usize);
-            let vn = (bodies.get(b).vel - bodies.get(a).vel).dot(c.normal);
-            let total = (c.normal_impulse + c.mass * (c.bounce - vn)).max(0.0);
-            let p = c.normal * (total - c.normal_impulse);
-            c.normal_impulse = total;
-            apply(bodies, c, p);
-            c.bounce = 0.0;
+            let (ba, bb) = (bodies.get(a), bodies.get(b));
+            let vn = (bb.vel - ba.vel).dot(c.normal);
+            let bounce = c.bounce_speed as f64;
+            if vn >= -bounce {
+                continue;
+            }
+            let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
+            // The pair's relative acceleration along the normal, and the approach the
+            // sub-step moves it by: under symplectic Euler the velocity after the gain
+            // (taken from the velocity before it, a ball bouncing on the ground under
+            // gravity lost `v g h / 2` of energy at every bounce); in exact or explicit
+            // flight the velocity before it.
+            let an = (gain_of(b) - gain_of(a)).dot(c.normal);
+            let v0 = if flight.is_some() { vn - an * h } else { vn };
+            // When within the sub-step it meets (0: touching), and how fast.
+            let (free, impact) = if gap > 0.0 {
+                let impact = -(v0 * v0 - 2.0 * an * gap).max(0.0).sqrt();
+                // The root of `gap + v0 t + an t^2 / 2 = 0`, in the form that stays exact
+                // when `an` is small (infinite when the pair never meets).
+                (2.0 * gap / (-v0 - impact), impact)
+            } else {
+                (0.0, v0)
+            };
+            let t = free.max(met[a]).max(met[b]);
+            // Where the sub-step's move leaves the pair without a collision: in flight
+            // (`flight`'s closed form), or by the velocity after the gain.
+            let rest = gap + vn * h - flight.map_or(0.0, |share| (1.0 - share) * an * h * h);
+            // The passes let a pair found apart close its gap within the sub-step when its
+            // velocity would carry it there: it meets within the sub-step then, at its end
+            // if its flight falls short (by rounding, or by a gain that curves it away).
+            // Left to the passes, it would land with the approach they clamp it to (less
+            // by up to `an h / 2` in exact flight), and bounce with that.
+            let closes = c.speculative && gap > 0.0 && -vn * h >= gap;
+            let meets = t <= h || closes;
+            // A pair the passes would let close its gap bounces in the sub-step it meets;
+            // one too slow at impact does not bounce.
+            if (c.speculative && gap > 0.0 && !meets)
+                || (if meets { impact } else { vn }) >= -bounce
+            {
+                continue;
+            }
+            let e = c.restitution as f64;
+            // Apart at `-e impact` from `t` on, under the pair's acceleration. A pair that
+            // stays a hair apart (nearer than the passes let close) turns where it is.
+            let (target, t) = if meets {
+                let t = t.min(h);
+                (-e * impact + an * (h - t), t)
+            } else {
+                (-e * vn, 0.0)
+            };
+            // Never pulling (a pair whose acceleration outruns its bounce).
+            let jn = (c.mass * (target - vn)).max(0.0);
+            // Friction within the Coulomb cone of the collision's impulse.
+            let t_dir = DVec2::new(-c.normal.y, c.normal.x);
+            let limit = c.friction * jn;
+            let jt = (-c.mass * (bb.vel - ba.vel).dot(t_dir)).clamp(-limit, limit);
+            let p = c.normal * jn + t_dir * jt;
+            // The change moves each body from `t` on only. A pair whose path does not
+            // meet within the sub-step (it meets at its end) ends it touching, as the
+            // passes would have left it: its move takes the rest of its gap too.
+            let late = t / h;
+            let short = if meets && free > h {
+                c.normal * (c.mass * rest / h)
+            } else {
+                DVec2::ZERO
+            };
+            bodies.update(a, |s| {
+                s.vel -= p * ba.inv_mass;
+                s.pseudo += (p * late + short) * ba.inv_mass;
+            });
+            bodies.update(b, |s| {
+                s.vel += p * bb.inv_mass;
+                s.pseudo -= (p * late + short) * bb.inv_mass;
+            });
+            // A static body's velocity never changes: its collisions set no time.
+            if ba.inv_mass > 0.0 {
+                met[a] = t;
+            }
+            if bb.inv_mass > 0.0 {
+                met[b] = t;
+            }
+            c.bounced = true;
+            any = true;
         }
-        bouncing |= c.bounce > 0.0;
+        if !any {
+            return;
+        }
     }
-    bouncing
 }
 
 /// The movers' velocities and moves back into the world, each pair's impulses kept for
@@ -196,7 +313,7 @@ pub(super) fn store(
         pair.normal = c.normal;
         pair.normal_impulse = c.normal_impulse;
         pair.tangent_impulse = c.tangent_impulse;
-        if c.normal_impulse > 0.0 {
+        if c.normal_impulse > 0.0 || c.bounced {
             pushed[c.a as usize] = true;
             pushed[c.b as usize] = true;
         }

@@ -8,7 +8,7 @@ use glam::DVec2;
 
 use super::team::Team;
 use super::{
-    blocks, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, RESTITUTION_SPEED, UNSLOTTED,
+    blocks, bounce_speed, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, UNSLOTTED,
 };
 use super::{MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
 use crate::dynamics::body::Body;
@@ -39,6 +39,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         places,
         cut_scratch,
         pushed: _,
+        met: _,
         crew: _,
         last_contacts: _,
         times: _,
@@ -160,7 +161,7 @@ pub(super) struct Found {
     pub deepest: f64,
     /// The smallest body size a contact touches (infinite for none).
     pub smallest: f64,
-    /// Whether a contact is to bounce.
+    /// Whether a contact may bounce (its pair's restitution is above 0).
     pub bouncing: bool,
     /// Whether a contact with a static body overlaps beyond its slop.
     pub deep_fixed: bool,
@@ -249,17 +250,19 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             } else {
                 approach
             };
-            let bounce = if impact < -RESTITUTION_SPEED {
-                -a.restitution.min(b.restitution) * impact
-            } else {
-                0.0
-            };
+            let restitution = a.restitution.min(b.restitution).max(0.0);
+            let accelerated = gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO;
+            let bounce_speed = bounce_speed(accelerated, size);
+            let bounces = restitution > 0.0 && impact < -bounce_speed;
             let slop = params.slop * size;
-            // Only contacts that touch, and are no impact, start from their last impulses.
+            // Only contacts that touch, and are no impact, start from their last impulses
+            // (a pair about to bounce starts from none: the collision stage bounces it
+            // with the approach it has).
             let warm = params.warm_starting
                 && gap <= slop
                 && old_n.dot(n) > 0.99
-                && approach.abs() <= WARM_START_SPEED;
+                && approach.abs() <= WARM_START_SPEED
+                && !bounces;
             let (sa, sb) = (self.slot[i as usize], self.slot[j as usize]);
             let bucket = blocks::bucket_of(
                 sa,
@@ -277,7 +280,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 |s| self.block_of[s as usize] as usize,
             );
             found.smallest = found.smallest.min(size);
-            found.bouncing |= bounce > 0.0;
+            found.bouncing |= restitution > 0.0;
             let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
             found.deep_fixed |= fixed && -gap > slop;
             out[bucket].push(Contact {
@@ -288,17 +291,18 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 friction: (a.friction * b.friction).sqrt(),
                 gap,
                 slop,
-                bounce,
+                restitution: restitution as f32,
+                bounce_speed: bounce_speed as f32,
                 max_push: MAX_PUSH_OUT * size,
                 normal_impulse: if warm { jn } else { 0.0 },
                 tangent_impulse: if warm { jt } else { 0.0 },
                 pseudo_impulse: 0.0,
                 pair: (first + k) as u32,
-                // A bouncing pair closes its gap, however small, before it bounces:
-                // bouncing from short of the surface would give it the gap's height for
-                // nothing.
-                speculative: gap > SPECULATIVE_GAP * size || (bounce > 0.0 && gap > 0.0),
+                // A pair about to bounce may close its gap, however small: it bounces
+                // where it meets, not short of it.
+                speculative: gap > SPECULATIVE_GAP * size || (bounces && gap > 0.0),
                 fixed,
+                bounced: false,
             });
         }
         found

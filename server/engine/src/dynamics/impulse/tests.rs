@@ -93,10 +93,15 @@ fn contacts_push_but_never_pull() {
 
 #[test]
 fn friction_stays_within_the_coulomb_cone_and_never_reverses_sliding() {
-    // A box sliding at 10 units/s on a static floor, pressed down at 1 unit/s.
+    // A box sliding at 10 units/s on a static floor, pressed down at 1 unit/s (no
+    // restitution: the press is held, not bounced).
+    let inelastic = |b: Body| Body {
+        restitution: 0.0,
+        ..b
+    };
     let mut bodies = vec![
         body(0, DVec2::ZERO, DVec2::ZERO, 0.0),
-        body(1, DVec2::new(0.0, 0.999), DVec2::new(10.0, -1.0), 1.0),
+        inelastic(body(1, DVec2::new(0.0, 0.999), DVec2::new(10.0, -1.0), 1.0)),
     ];
     solve(
         &mut bodies,
@@ -114,7 +119,7 @@ fn friction_stays_within_the_coulomb_cone_and_never_reverses_sliding() {
     // A slow slider is stopped, not reversed.
     let mut bodies = vec![
         body(0, DVec2::ZERO, DVec2::ZERO, 0.0),
-        body(1, DVec2::new(0.0, 0.999), DVec2::new(0.2, -1.0), 1.0),
+        inelastic(body(1, DVec2::new(0.0, 0.999), DVec2::new(0.2, -1.0), 1.0)),
     ];
     solve(
         &mut bodies,
@@ -141,4 +146,83 @@ fn a_pair_listed_twice_is_one_contact() {
         &mut Contacts::default(),
     );
     assert_eq!(r.contacts, 1);
+}
+
+/// A ball of radius 0.5, mass 1, restitution 1, no friction.
+fn ball(key: u32, x: f64, vx: f64) -> Body {
+    Body {
+        key: BodyKey(key),
+        restitution: 1.0,
+        friction: 0.0,
+        ..Body::for_test(
+            Shape::circle(0.5),
+            DVec2::new(x, 0.0),
+            DVec2::new(vx, 0.0),
+            1.0,
+        )
+    }
+}
+
+/// One frame over every pair of `bodies` (all moving), without gravity.
+fn solve_all(bodies: &mut [Body], params: ImpulseParams) {
+    let n = bodies.len() as u32;
+    let mut candidates: Vec<(u32, u32)> = (0..n)
+        .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+        .collect();
+    let mut contacts = Contacts::default();
+    contacts.refill(&mut candidates, &mut Vec::new());
+    let movers: Vec<u32> = (0..n).collect();
+    solve_frame(
+        bodies,
+        &mut contacts.pairs,
+        params,
+        &mut SolverBuffers::default(),
+        &movers,
+        |_| DVec2::ZERO,
+        &mut Vec::new(),
+    );
+}
+
+#[test]
+fn a_row_of_touching_elastic_balls_hands_the_first_ones_speed_to_the_last() {
+    // Solving the row's contacts at once shares the speed out (8 balls at v/8 keep an
+    // eighth of the energy); collisions one pair at a time pass it down the row.
+    for reversed in [false, true] {
+        let mut bodies: Vec<Body> = (0..8)
+            .map(|k| ball(k, k as f64, if k == 0 { 6.0 } else { 0.0 }))
+            .collect();
+        if reversed {
+            bodies.reverse();
+        }
+        solve_all(&mut bodies, params());
+        let speed = |k: u32| bodies.iter().find(|b| b.key == BodyKey(k)).unwrap().vel.x;
+        assert!(
+            (speed(7) - 6.0).abs() < 1e-9,
+            "reversed {reversed}: {}",
+            speed(7)
+        );
+        for k in 0..7 {
+            assert!(
+                speed(k).abs() < 1e-9,
+                "reversed {reversed}: ball {k} at {}",
+                speed(k)
+            );
+        }
+    }
+}
+
+#[test]
+fn an_elastic_ball_that_meets_a_wall_within_the_step_bounces_where_it_meets() {
+    // 0.05 from the wall at 6 units/s: it meets after 1/120 s, then leaves for the rest
+    // of the 1/60 s step, ending 0.05 from the wall again, moving away at 6.
+    let mut bodies = vec![
+        Body {
+            restitution: 1.0,
+            ..body(0, DVec2::new(1.0, 0.0), DVec2::ZERO, 0.0)
+        },
+        ball(1, -0.05, 6.0),
+    ];
+    solve_all(&mut bodies, params());
+    assert!((bodies[1].vel.x + 6.0).abs() < 1e-9, "{}", bodies[1].vel);
+    assert!((bodies[1].pos.x + 0.05).abs() < 1e-9, "{}", bodies[1].pos);
 }
