@@ -317,8 +317,11 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
     let fork = server_command(
         &client,
         ServerCommand::Fork {
-            world: "table-fine".into(),
-            settings: BTreeMap::from([("substeps".to_string(), serde_json::json!(4))]),
+            world: "table-chapter".into(),
+            settings: BTreeMap::from([(
+                "solver".to_string(),
+                serde_json::json!("relaxation"),
+            )]),
         },
     );
     assert!(fork.ok, "{:?}", fork.error);
@@ -334,10 +337,10 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
     );
     let listed = ok(&server.cli(&["worlds"]));
     assert!(
-        listed.contains("table") && listed.contains("table-fine"),
+        listed.contains("table") && listed.contains("table-chapter"),
         "{listed}"
     );
-    let forked = Client::open(&server.network(), "table-fine").unwrap();
+    let forked = Client::open(&server.network(), "table-chapter").unwrap();
     wait_answered(&forked, "the fork");
     let fork_info = forked.info(TIMEOUT).unwrap();
     assert_eq!(fork_info.forked_from.as_deref(), Some("table"));
@@ -354,7 +357,7 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         "the fork starts at the frame it was forked at"
     );
     // The same strike in both, so both move (a world at rest holds the same bits under
-    // any number of sub-steps).
+    // either solver).
     for world in [&client, &forked] {
         let reply = world_command(
             world,
@@ -371,7 +374,7 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         hashes(&client, fork_end, fork_end),
         hashes(&forked, fork_end, fork_end),
     );
-    assert_ne!(a, b, "4 substeps gave the same bits as 2");
+    assert_ne!(a, b, "the chapter's relaxation gave the same bits as impulses");
 
     // Both run in real time at once (60 steps a second each).
     resume(&client);
@@ -383,7 +386,7 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         request(&forked, Command::World(Action::Deselect)).frame,
     );
     let seconds = began.elapsed().as_secs_f64();
-    for (name, frames) in [("table", fa - fork_end), ("table-fine", fb - fork_end)] {
+    for (name, frames) in [("table", fa - fork_end), ("table-chapter", fb - fork_end)] {
         let rate = frames as f64 / seconds;
         assert!(
             rate > 40.0 && rate < 75.0,
@@ -394,21 +397,21 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
     // Closed from the command line, the fork says so, is no longer served, and its place
     // is free again.
     let closed = Process::new(bin("ricochet"))
-        .args(["--world", "table-fine", "--connect", &server.endpoint])
+        .args(["--world", "table-chapter", "--connect", &server.endpoint])
         .args(["send", "close"])
         .env("RUST_LOG", "warn")
         .output()
         .expect("ricochet starts");
     ok(&closed);
     let began = Instant::now();
-    while ok(&server.cli(&["worlds"])).contains("table-fine") {
+    while ok(&server.cli(&["worlds"])).contains("table-chapter") {
         assert!(began.elapsed() < TIMEOUT, "the closed fork is still listed");
         std::thread::sleep(Duration::from_millis(100));
     }
     let again = server_command(
         &client,
         ServerCommand::Fork {
-            world: "table-fine".into(),
+            world: "table-chapter".into(),
             settings: BTreeMap::new(),
         },
     );

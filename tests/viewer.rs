@@ -623,7 +623,9 @@ b = "walls"
     scene
 }
 
-/// `--world A --world B`: a world and its fork under another setting (4 substeps), both
+/// `--world A --world B`: a world and its fork under another setting (the chapter's
+/// relaxation solver; a gravity-free table's flight and bounces are exact under any
+/// number of sub-steps, so those would not drift), both
 /// paused at the fork, watched by one viewer into one recording, then both resumed. Each
 /// world's bodies are drawn under its own root, the fork's moved aside so the two do not
 /// overlap, each with its name; the drift plots have a value at the frames both worlds
@@ -648,21 +650,21 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
     let fork = request(
         &client,
         Command::Server(ServerCommand::Fork {
-            world: "drift-fine".into(),
+            world: "drift-chapter".into(),
             settings: std::collections::BTreeMap::from([(
-                "substeps".to_string(),
-                serde_json::json!(4),
+                "solver".to_string(),
+                serde_json::json!("relaxation"),
             )]),
         }),
     );
     assert!(fork.ok, "{fork:?}");
-    let forked = ricochet_protocol::client::Client::open(&server.network(), "drift-fine").unwrap();
+    let forked = ricochet_protocol::client::Client::open(&server.network(), "drift-chapter").unwrap();
     wait_answered(&forked, "the fork");
 
     let file = dir.path().join("drift.rrd");
     let frames = 240u64;
     let mut viewer = Process::new(bin("ricochet-viewer"))
-        .args(["--world", "drift", "--world", "drift-fine"])
+        .args(["--world", "drift", "--world", "drift-chapter"])
         .args(["--connect", &server.endpoint, "--save"])
         .arg(&file)
         .args(["--frames", &frames.to_string(), "--wait", "20"])
@@ -676,7 +678,7 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
     // Both worlds joined (their paused state decoded, the fork's frame compared) before
     // either moves.
     // (The first line naming the fork is the viewer's `joined` of it.)
-    wait_line(&log, "drift-fine", Duration::from_secs(60), "the viewer");
+    wait_line(&log, "drift-chapter", Duration::from_secs(60), "the viewer");
     std::thread::sleep(Duration::from_millis(1500));
     resume(&client);
     resume(&forked);
@@ -697,7 +699,7 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
 
     let rrd = read_rrd(&file);
     let entities = rrd["entities"].as_object().expect("entities");
-    for world in ["drift", "drift-fine"] {
+    for world in ["drift", "drift-chapter"] {
         for path in [
             format!("/world/{world}/bounds"),
             format!("/world/{world}/statics/walls"),
@@ -725,7 +727,7 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
     // The fork is moved aside by more than the table's width; the first stays in place.
     let x = |path: &str| rrd["translations"][path][0].as_f64().unwrap_or(f64::NAN);
     assert_eq!(x("/world/drift"), 0.0);
-    assert!(x("/world/drift-fine") > 40.0, "{}", rrd["translations"]);
+    assert!(x("/world/drift-chapter") > 40.0, "{}", rrd["translations"]);
 
     let series = |path: &str| -> Vec<(u64, f64)> {
         let mut v: Vec<(u64, f64)> = rrd["scalars"][path]
@@ -737,8 +739,8 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
         v.sort_by_key(|(f, _)| *f);
         v
     };
-    let distance = series("/drift/body_distance/drift-fine");
-    let energy = series("/drift/kinetic_energy/drift-fine");
+    let distance = series("/drift/body_distance/drift-chapter");
+    let energy = series("/drift/kinetic_energy/drift-chapter");
     // Compared at the frames both decoded: nearly every one, both running in real time.
     assert!(distance.len() as u64 >= frames / 2, "{distance:?}");
     assert_eq!(
@@ -759,7 +761,7 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
     // Overlaid: both worlds in place, one over the other, still compared.
     let file = dir.path().join("overlay.rrd");
     let out = Process::new(bin("ricochet-viewer"))
-        .args(["--world", "drift", "--world", "drift-fine", "--overlay"])
+        .args(["--world", "drift", "--world", "drift-chapter", "--overlay"])
         .args(["--connect", &server.endpoint, "--save"])
         .arg(&file)
         .args(["--frames", "30", "--wait", "20"])
@@ -775,11 +777,11 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
     );
     let rrd = read_rrd(&file);
     let x = |path: &str| rrd["translations"][path][0].as_f64().unwrap_or(f64::NAN);
-    assert_eq!((x("/world/drift"), x("/world/drift-fine")), (0.0, 0.0));
+    assert_eq!((x("/world/drift"), x("/world/drift-chapter")), (0.0, 0.0));
     assert!(rrd["entities"]
-        .get("/world/drift-fine/bodies/balls")
+        .get("/world/drift-chapter/bodies/balls")
         .is_some());
-    assert!(rrd["scalars"]["/drift/body_distance/drift-fine"]
+    assert!(rrd["scalars"]["/drift/body_distance/drift-chapter"]
         .as_object()
         .is_some_and(|v| !v.is_empty()));
 }

@@ -155,7 +155,8 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
 /// What finding a frame's contacts found, besides the contacts.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Found {
-    /// Contacts touching (or overlapping).
+    /// Contacts touching (within the speculative gap a resting contact holds) or
+    /// overlapping.
     pub touching: u64,
     /// The deepest penetration among them.
     pub deepest: f64,
@@ -235,8 +236,12 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             if gap > reach && gap > rel.length() * frame_dt + reach {
                 continue;
             }
-            if gap <= 0.0 {
+            // Touching: within the gap a resting contact holds (bodies at rest settle
+            // anywhere in it, and a bounce leaves them apart, never overlapped).
+            if gap <= SPECULATIVE_GAP * size {
                 found.touching += 1;
+            }
+            if gap <= 0.0 {
                 found.deepest = found.deepest.max(-gap);
             }
             // The approach speed at impact: a pair found apart closes its gap under its
