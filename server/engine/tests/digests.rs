@@ -345,9 +345,12 @@ fn a_damaged_checkpoint_is_refused() {
     let mut later = bytes.clone();
     later[3] = 99;
     assert!(err(&later).contains("version 99"));
-    // Version 1 kept warm starts in two places, by broad phase: refused, by name.
+    // Version 1 kept warm starts in two places, by broad phase, and version 2 the pair
+    // set's grid cells: refused, by name.
     later[3] = 1;
     assert!(err(&later).contains("version 1;"), "{}", err(&later));
+    later[3] = 2;
+    assert!(err(&later).contains("version 2;"), "{}", err(&later));
     // Valid checksum over bytes that are not a world.
     let mut junk = b"RCK".to_vec();
     junk.push(ricochet_engine::world::CHECKPOINT_VERSION);

@@ -34,8 +34,9 @@ pub enum BroadPhase {
     /// Sweep and prune along x, once per step.
     #[default]
     Sweep,
-    /// A uniform grid of fattened boxes whose pairs are kept between steps and looked at
-    /// again only for bodies that left their fat box ([`super::pairs`]).
+    /// Fattened boxes whose pairs are kept between steps and looked at again only for
+    /// bodies that left their fat box ([`super::pairs`]): small boxes in a uniform grid,
+    /// large or fast ones in a dynamic tree.
     Grid,
 }
 

@@ -2,25 +2,29 @@
 //! step.
 //!
 //! Every body of a group that a resolving interaction names gets a *fat box*: its bounding
-//! box grown by a margin. Fat boxes live in a uniform grid, and the candidate pairs are
-//! the pairs of eligible bodies whose fat boxes overlap. A step looks only at the bodies
-//! that move: one whose box (grown by how far it may travel this step) still fits in its
-//! fat box changes nothing; one that left it gets a new fat box, is moved between grid
-//! cells and looks for new neighbours there. A resting pile of thousands of bodies costs
-//! one containment test per body; static bodies cost nothing at all until the layout
-//! changes (bodies added, removed or moved by hand, interactions declared), which
-//! rebuilds the set.
+//! box grown by a margin. Fat boxes live in an index of two tiers ([`Tiered`]): a uniform
+//! grid for those that cover a few of its cells, a dynamic tree for the others (a large
+//! body among small ones, a small one thrown fast), where a body costs what it overlaps,
+//! not the area it covers. The candidate pairs are the pairs of eligible bodies whose fat
+//! boxes overlap. A step looks only at the bodies that move: one whose box (grown by how
+//! far it may travel this step) still fits in its fat box changes nothing; one that left
+//! it gets a new fat box, is moved in the index and looks for new neighbours there. A
+//! resting pile of thousands of bodies costs one containment test per body; static
+//! bodies cost nothing at all until the layout changes (bodies added, removed or moved by
+//! hand, interactions declared), which rebuilds the set.
 //!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
-//! is deterministic. They live in [`Contacts`], the one home of the solver's pairs and
-//! their warm starts whatever the broad phase: the grid keeps them up to date in place,
-//! the other broad phases refill them each step ([`Contacts::refill`]).
+//! is deterministic: the pairs are exactly the eligible pairs whose fat boxes overlap,
+//! whatever a body's tier or the tree's shape. They live in [`Contacts`], the one home of
+//! the solver's pairs and their warm starts whatever the broad phase: the pair set keeps
+//! them up to date in place, the other broad phases refill them each step
+//! ([`Contacts::refill`]).
 
 use glam::DVec2;
 
 use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
-use crate::geometry::grid::{Cells, Grid};
+use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
@@ -103,27 +107,28 @@ impl Contacts {
     }
 }
 
-/// Where a body sits in the grid: `None` when it is in no resolving interaction.
-type Place = Option<Cells>;
-
 #[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
 struct Fat {
     min: DVec2,
     max: DVec2,
-    place: Place,
+    /// Whether the body is in the index (in a resolving interaction).
+    placed: bool,
 }
 
-/// A body's box may cover at most this many cells; larger ones are kept aside.
-const MAX_CELLS: i64 = 64;
-
-/// The grid that keeps the candidate pairs of every resolving interaction (in
+/// The index of fat boxes that keeps the candidate pairs of every resolving interaction (in
 /// [`Contacts`]) from step to step.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
 pub struct PairSet {
     /// The world layout revision the set was built for.
     revision: Option<u64>,
     fat: Vec<Fat>,
-    grid: Grid,
+    /// The side of the grid's cells (twice the typical moving body).
+    cell: f64,
+    /// The fat boxes of the placed bodies: a grid of cells of side `cell` for those that
+    /// cover a few of them, a tree for the others. Not saved: a restored set builds it
+    /// again from `fat` (what a query finds does not depend on the tree's shape).
+    #[serde(skip)]
+    index: Tiered,
     /// Which group pairs resolve (row-major, `groups x groups`).
     resolves: Vec<bool>,
     groups: usize,
@@ -134,10 +139,6 @@ pub struct PairSet {
     /// The bodies whose neighbours this round searches: a pair of two of them is taken
     /// from the smaller's search only.
     searching: Vec<bool>,
-    /// The search each body was last seen by (a body in several cells of a search comes
-    /// once per cell; it is taken once).
-    seen: Vec<u32>,
-    search: u32,
     /// Bodies re-inserted over the set's life (a figure for tests and benchmarks).
     pub reinserted: u64,
 }
@@ -151,6 +152,13 @@ fn reach(body: &Body, dt: f64) -> f64 {
 /// A body that is static for good (a sleeper is only frozen for the step).
 fn fixed(body: &Body) -> bool {
     body.is_static() && body.asleep.is_none()
+}
+
+/// Whether bodies `i` and `j` make a candidate pair: two bodies, not both static for
+/// good, of groups that resolve (`resolves`, row-major, `groups x groups`).
+fn eligible(resolves: &[bool], groups: usize, bodies: &[Body], i: u32, j: u32) -> bool {
+    let (p, q) = (&bodies[i as usize], &bodies[j as usize]);
+    i != j && !(fixed(p) && fixed(q)) && resolves[p.group as usize * groups + q.group as usize]
 }
 
 fn overlap(p: &Fat, q: &Fat) -> bool {
@@ -176,11 +184,14 @@ impl PairSet {
             self.rebuild(pairs, bodies, revision, resolving, dt);
             return;
         }
+        if self.index.capacity() != self.fat.len() {
+            self.reindex();
+        }
         self.moved.clear();
         for &i in movers {
             let body = &bodies[i as usize];
             let f = self.fat[i as usize];
-            if f.place.is_none() {
+            if !f.placed {
                 continue;
             }
             let r = reach(body, dt);
@@ -192,13 +203,16 @@ impl PairSet {
             {
                 continue;
             }
-            self.remove_from_cells(i);
+            self.index.remove(i, f.min, f.max);
             self.place(bodies, i, dt);
+            let Fat { min, max, .. } = self.fat[i as usize];
+            self.index.insert(i, min, max);
             self.moved.push(i);
         }
         if self.moved.is_empty() {
             return;
         }
+        self.index.flush();
         self.reinserted += self.moved.len() as u64;
         let fat = &self.fat;
         pairs.retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
@@ -217,8 +231,7 @@ impl PairSet {
     }
 
     /// Checks a set read back from a checkpoint against the world's `bodies` and its
-    /// `groups`: every index in range, every box finite, every place one its grid could
-    /// have given. A set the next update rebuilds anyway (another revision, another body
+    /// `groups`: every index in range, every box of a placed body finite. A set the next update rebuilds anyway (another revision, another body
     /// count) is not read and passes. Names the field that is wrong.
     pub fn check(&self, bodies: &[Body], groups: usize) -> Result<(), (String, String)> {
         let bad = |field: &str, reason: String| Err((format!("pair_set.{field}"), reason));
@@ -236,19 +249,27 @@ impl PairSet {
                 ),
             );
         }
-        self.grid
-            .check(n, MAX_CELLS)
-            .or_else(|reason| bad("grid", reason))?;
+        if !(self.cell.is_finite() && self.cell >= 1e-9) {
+            return bad(
+                "cell",
+                format!("{} is not a finite size of at least 1e-9", self.cell),
+            );
+        }
         for (i, f) in self.fat.iter().enumerate() {
-            let Some(place) = f.place else { continue };
-            if !(f.min.is_finite() && f.max.is_finite() && self.grid.holds(place)) {
-                return bad(&format!("fat[{i}]"), "a box or cells out of range".into());
+            if !f.placed {
+                continue;
+            }
+            if !(f.min.is_finite() && f.max.is_finite() && f.min.cmple(f.max).all()) {
+                return bad(
+                    &format!("fat[{i}]"),
+                    "a box not finite or upside down".into(),
+                );
             }
             if bodies[i].group as usize >= self.groups {
                 return bad(
                     &format!("fat[{i}]"),
                     format!(
-                        "body {i} of group {} is in a grid of {} groups",
+                        "body {i} of group {} is in a set of {} groups",
                         bodies[i].group, self.groups
                     ),
                 );
@@ -257,13 +278,25 @@ impl PairSet {
         Ok(())
     }
 
-    /// The first body with a place in the grid (for tests).
+    /// The first body in the index (for tests).
     #[cfg(test)]
     pub(crate) fn first_placed(&self) -> Option<usize> {
-        self.fat.iter().position(|f| f.place.is_some())
+        self.fat.iter().position(|f| f.placed)
     }
 
-    /// Makes the next update rebuild the grid: `Contacts` were filled by another broad
+    /// Builds the index again from the fat boxes (after a rebuild, or in a set restored
+    /// from a checkpoint).
+    fn reindex(&mut self) {
+        self.index.reset(self.cell, self.fat.len());
+        for (i, f) in self.fat.iter().enumerate() {
+            if f.placed {
+                self.index.insert(i as u32, f.min, f.max);
+            }
+        }
+        self.index.flush();
+    }
+
+    /// Makes the next update rebuild the set: `Contacts` were filled by another broad
     /// phase.
     pub fn forget(&mut self) {
         self.revision = None;
@@ -311,7 +344,7 @@ impl PairSet {
                 .collect();
             (!halves.is_empty()).then(|| halves.iter().sum::<f64>() / halves.len() as f64)
         };
-        let cell = mean_half(&|b| !fixed(b))
+        self.cell = mean_half(&|b| !fixed(b))
             .or_else(|| mean_half(&|_| true))
             .map_or(1.0, |h| (4.0 * h).max(1e-9));
         let play: Vec<bool> = bodies.iter().map(in_play).collect();
@@ -321,15 +354,15 @@ impl PairSet {
             Fat {
                 min: DVec2::ZERO,
                 max: DVec2::ZERO,
-                place: None,
+                placed: false,
             },
         );
-        self.grid = Grid::new(cell, MAX_CELLS);
         for (i, &p) in play.iter().enumerate() {
             if p {
                 self.place(bodies, i as u32, dt);
             }
         }
+        self.reindex();
         self.found.clear();
         self.searching.clear();
         self.searching.extend_from_slice(&play);
@@ -352,7 +385,7 @@ impl PairSet {
         }
     }
 
-    /// Gives body `i` a fat box around where it is now and puts it in the grid.
+    /// Gives body `i` a fat box around where it is now (the caller puts it in the index).
     fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
         let body = &bodies[i as usize];
         let Aabb { min, max } = Aabb::of(&body.shape, body.pos);
@@ -363,69 +396,32 @@ impl PairSet {
             2.0 * body.vel.length() * dt + 0.25 * body.shape.half_extents().max_element()
         };
         let (min, max) = (min - m, max + m);
-        let place = Some(self.grid.insert(i, min, max));
-        self.fat[i as usize] = Fat { min, max, place };
-    }
-
-    fn remove_from_cells(&mut self, i: u32) {
-        if let Some(place) = self.fat[i as usize].place {
-            self.grid.remove(i, place);
-        }
-    }
-
-    fn eligible(&self, bodies: &[Body], i: u32, j: u32) -> bool {
-        let (p, q) = (&bodies[i as usize], &bodies[j as usize]);
-        i != j
-            && !(fixed(p) && fixed(q))
-            && self.resolves[p.group as usize * self.groups + q.group as usize]
+        self.fat[i as usize] = Fat {
+            min,
+            max,
+            placed: true,
+        };
     }
 
     /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap, each once: a
-    /// body met in several cells is taken at the first, and a pair of two searched
-    /// bodies from the smaller's search.
+    /// pair of two searched bodies from the smaller's search.
     fn neighbours(&mut self, bodies: &[Body], i: u32) {
         let fi = self.fat[i as usize];
-        if self.seen.len() < self.fat.len() {
-            self.seen.resize(self.fat.len(), 0);
+        if !fi.placed {
+            return;
         }
-        self.search = self.search.wrapping_add(1);
-        if self.search == 0 {
-            self.seen.fill(0);
-            self.search = 1;
-        }
-        let search = self.search;
-        let mut found = std::mem::take(&mut self.found);
-        let mut seen = std::mem::take(&mut self.seen);
-        let mut push = |set: &Self, j: u32| {
-            let s = &mut seen[j as usize];
-            if *s == search {
-                return;
-            }
-            *s = search;
-            if (j < i && set.searching[j as usize])
-                || !overlap(&fi, &set.fat[j as usize])
-                || !set.eligible(bodies, i, j)
+        let (fat, searching, found) = (&self.fat, &self.searching, &mut self.found);
+        let (resolves, groups) = (&self.resolves, self.groups);
+        self.index.query(fi.min, fi.max, |j| {
+            if (j < i && searching[j as usize])
+                || !overlap(&fi, &fat[j as usize])
+                || !eligible(resolves, groups, bodies, i, j)
             {
                 return;
             }
             let (a, b) = (i.min(j), i.max(j));
             found.push(u64::from(a) << 32 | u64::from(b));
-        };
-        match fi.place {
-            None => {}
-            Some(Cells::Range(x0, y0, x1, y1)) => {
-                self.grid.visit((x0, y0, x1, y1), |j| push(self, j));
-            }
-            Some(Cells::Oversized) => {
-                for j in 0..self.fat.len() as u32 {
-                    if self.fat[j as usize].place.is_some() {
-                        push(self, j);
-                    }
-                }
-            }
-        }
-        self.found = found;
-        self.seen = seen;
+        });
     }
 
     /// Adds the pairs in `found` that are not kept yet, keeping `pairs` sorted.
@@ -503,7 +499,7 @@ mod tests {
                 (0.0f64..60.0, 0.0f64..60.0, 0.2f64..6.0, 0.2f64..6.0, 0u8..4, 0u16..3), 2..60),
             moves in proptest::collection::vec((0usize..60, -8.0f64..8.0, -8.0f64..8.0), 0..40),
         ) {
-            // A static floor far larger than the grid's cells, too.
+            // A static floor far larger than the other bodies, too.
             let mut bodies = vec![body(0, 30.0, -1.0, 400.0, 2.0, 0.0, 0)];
             bodies.extend(boxes.iter().enumerate().map(|(k, &(x, y, w, h, s, g))| {
                 body(k as u32 + 1, x, y, w, h, if s == 0 { 0.0 } else { 1.0 }, g)
@@ -534,6 +530,122 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Every eligible pair whose fat boxes overlap, by brute force over every pair: what
+    /// the set must hold, exactly.
+    fn overlapping_fat_boxes(set: &PairSet, bodies: &[Body]) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        for i in 0..bodies.len() as u32 {
+            for j in i + 1..bodies.len() as u32 {
+                let (p, q) = (&set.fat[i as usize], &set.fat[j as usize]);
+                if p.placed
+                    && q.placed
+                    && overlap(p, q)
+                    && eligible(&set.resolves, set.groups, bodies, i, j)
+                {
+                    out.push((i, j));
+                }
+            }
+        }
+        out
+    }
+
+    proptest! {
+        /// Boxes from 1e-2 to 1e2 across, moved, thrown fast, added and removed: the kept
+        /// pairs are exactly the eligible pairs whose fat boxes overlap, and they hold
+        /// every pair whose boxes touch.
+        #[test]
+        fn kept_pairs_are_exactly_the_overlapping_fat_boxes_whatever_the_sizes(
+            boxes in proptest::collection::vec(
+                (-60.0f64..60.0, -60.0f64..60.0, -2.0f64..2.0, -2.0f64..2.0, 0u8..5, 0u16..3),
+                2..50),
+            ops in proptest::collection::vec(
+                (0u8..5, 0usize..64, -1.0f64..1.0, -1.0f64..1.0, -2.0f64..2.0), 1..40),
+        ) {
+            // Sides of 10^-2 to 10^2, even in the logarithm.
+            let make = |key: u32, x: f64, y: f64, w: f64, h: f64, s: u8, g: GroupId| {
+                let inv_mass = if s == 0 { 0.0 } else { 1.0 };
+                body(key, x, y, 10f64.powf(w), 10f64.powf(h), inv_mass, g)
+            };
+            let mut bodies: Vec<Body> = boxes
+                .iter()
+                .enumerate()
+                .map(|(k, &(x, y, w, h, s, g))| make(k as u32, x, y, w, h, s, g))
+                .collect();
+            let mut key = bodies.len() as u32;
+            let resolving = [(0, 1), (1, 1)];
+            let movers = |bodies: &[Body]| -> Vec<u32> {
+                (0..bodies.len() as u32)
+                    .filter(|&i| !bodies[i as usize].is_static())
+                    .collect()
+            };
+            let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+            let (dt, mut revision) = (1.0 / 60.0, 1);
+            set.update(&mut contacts, &bodies, revision, &resolving, &movers(&bodies), dt);
+            for (op, k, dx, dy, e) in ops {
+                let n = bodies.len();
+                match op {
+                    // A move of up to 10^e, at the speed it takes in a step.
+                    0..=2 => {
+                        let b = &mut bodies[k % n];
+                        if !b.is_static() {
+                            let d = DVec2::new(dx, dy) * 10f64.powf(e);
+                            b.vel = d / dt;
+                            b.pos += d;
+                        }
+                    }
+                    // A body added, of sides 10^e by 10^-e.
+                    3 => {
+                        bodies.push(make(key, dx * 60.0, dy * 60.0, e, -e, k as u8 % 5, k as u16 % 3));
+                        key += 1;
+                        revision += 1;
+                    }
+                    // A body removed.
+                    _ => {
+                        if n > 2 {
+                            let mut removed = vec![false; n];
+                            removed[k % n] = true;
+                            bodies.remove(k % n);
+                            contacts.remove_bodies(&removed);
+                            revision += 1;
+                        }
+                    }
+                }
+                set.update(&mut contacts, &bodies, revision, &resolving, &movers(&bodies), dt);
+                let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+                prop_assert_eq!(&kept, &overlapping_fat_boxes(&set, &bodies));
+                for t in touching(&bodies, &resolving) {
+                    prop_assert!(kept.binary_search(&t).is_ok(), "missing {:?}", t);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_restored_set_builds_its_tree_again_and_keeps_its_pairs() {
+        let mut bodies: Vec<Body> = (0..30)
+            .map(|k| body(k, (k % 6) as f64, (k / 6) as f64, 1.0, 1.0, 1.0, 1))
+            .collect();
+        bodies.push(body(30, 2.5, -40.0, 80.0, 78.0, 0.0, 0));
+        let movers: Vec<u32> = (0..30).collect();
+        let resolving = [(0, 1), (1, 1)];
+        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+        let dt = 1.0 / 60.0;
+        set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+        let bytes = serde_json::to_vec(&set).unwrap();
+        let mut restored: PairSet = serde_json::from_slice(&bytes).unwrap();
+        let mut again = contacts.clone();
+        for step in 0..20 {
+            bodies[step % 30].pos += DVec2::new(3.0, 0.5);
+            bodies[step % 30].vel = DVec2::new(180.0, 30.0);
+            set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+            restored.update(&mut again, &bodies, 1, &resolving, &movers, dt);
+            assert_eq!(contacts.pairs, again.pairs);
+        }
+        assert_eq!(restored.index.capacity(), 31);
+        // The floor and the thrown bodies cover more cells than the grid keeps.
+        assert!(restored.index.in_tree() > 1);
     }
 
     #[test]

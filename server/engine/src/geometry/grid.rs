@@ -3,8 +3,10 @@
 //! boxes too large to bin (they would fill too many cells).
 //!
 //! In: slots (body indices) with their boxes. Out: the slots whose cells a box touches.
-//! The persistent pair set (`dynamics::pairs`) inserts and removes moving bodies in it;
-//! the static grid of a large all-static group (`dynamics::broad_phase`) builds it once.
+//! The static grid of a large all-static group (`dynamics::broad_phase`) builds it once;
+//! the persistent pair set's index (`geometry::tiered`) keeps the boxes that cover a few
+//! cells in it, and the others in a dynamic tree (`geometry::tree`), where a large or
+//! fast body costs one leaf, not the cells it covers.
 //! (The particle pass keeps its own dense, frozen layout of the few shapes particles hit,
 //! `particles::system::ShapeGrid`: a point lookup there is an array index, not a hash.)
 
@@ -57,11 +59,18 @@ impl Grid {
         self.oversized.clear();
     }
 
-    /// The cells a box covers, or `Oversized` when they are more than the grid bins.
-    pub fn cells_of(&self, min: DVec2, max: DVec2) -> Cells {
+    /// The cells `x0..=x1, y0..=y1` a box covers, and how many they are (saturating).
+    pub fn range_of(&self, min: DVec2, max: DVec2) -> ((i64, i64, i64, i64), i64) {
         let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
         let (x0, y0, x1, y1) = (c(min.x), c(min.y), c(max.x), c(max.y));
-        if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > self.max_cells {
+        let count = (x1 - x0 + 1).saturating_mul(y1 - y0 + 1);
+        ((x0, y0, x1, y1), count)
+    }
+
+    /// The cells a box covers, or `Oversized` when they are more than the grid bins.
+    pub fn cells_of(&self, min: DVec2, max: DVec2) -> Cells {
+        let ((x0, y0, x1, y1), count) = self.range_of(min, max);
+        if count > self.max_cells {
             Cells::Oversized
         } else {
             Cells::Range(x0, y0, x1, y1)
