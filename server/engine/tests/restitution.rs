@@ -5,6 +5,7 @@
 mod common;
 
 use common::{asset, body, set};
+use glam::DVec2;
 use ricochet_engine::prelude::*;
 
 /// The shipped bounce scene, `restitution` on both ball and ground, under `settings`.
@@ -180,4 +181,61 @@ fn exact_flight_keeps_the_energy_wherever_a_bounce_falls_in_the_sub_step() {
             );
         }
     }
+}
+
+/// Without gravity the default's flights are straight and its bounces meet at their
+/// instant in the sub-step, so a table of bouncing balls moves the same under any number
+/// of sub-steps (to rounding): a fork under more sub-steps does not drift from its parent.
+/// Under gravity the sub-steps change the flights, and the runs part.
+#[test]
+fn a_gravity_free_table_moves_the_same_under_any_number_of_sub_steps() {
+    let mut table = String::from(
+        "[world]\ngravity = [0, 0]\nbounds = [[0, 0], [40, 20]]\n\
+         [[body]]\nid = \"floor\"\ngroup = \"walls\"\nshape = \"rect\"\nsize = [40, 1]\npos = [20, 0]\nmass = 0\n\
+         [[body]]\nid = \"roof\"\ngroup = \"walls\"\nshape = \"rect\"\nsize = [40, 1]\npos = [20, 20]\nmass = 0\n\
+         [[body]]\nid = \"left\"\ngroup = \"walls\"\nshape = \"rect\"\nsize = [1, 20]\npos = [0, 10]\nmass = 0\n\
+         [[body]]\nid = \"right\"\ngroup = \"walls\"\nshape = \"rect\"\nsize = [1, 20]\npos = [40, 10]\nmass = 0\n\
+         [[interact]]\na = \"balls\"\nb = \"balls\"\n[[interact]]\na = \"balls\"\nb = \"walls\"\n",
+    );
+    let balls = [
+        ([8.0, 10.0], [18.0, 1.0]),
+        ([30.0, 10.5], [-12.0, 0.0]),
+        ([20.0, 5.0], [3.0, -14.0]),
+        ([12.0, 15.0], [-9.0, 8.0]),
+        ([33.0, 4.0], [10.0, 6.0]),
+        ([25.0, 16.0], [-7.0, -11.0]),
+    ];
+    for (k, (pos, vel)) in balls.iter().enumerate() {
+        table.push_str(&format!(
+            "[[body]]\nid = \"ball-{k}\"\ngroup = \"balls\"\nshape = \"circle\"\nradius = 1\n\
+             pos = {pos:?}\nvel = {vel:?}\nrestitution = 0.9\nfriction = 0.1\n"
+        ));
+    }
+    let run = |text: &str, substeps: u32| -> Vec<Vec<DVec2>> {
+        let mut w = common::scene(text);
+        w.apply(&set(&format!("substeps={substeps}"))).unwrap();
+        (0..600)
+            .map(|_| {
+                w.step();
+                w.bodies().iter().map(|b| b.pos).collect()
+            })
+            .collect()
+    };
+    let apart = |a: &[Vec<DVec2>], b: &[Vec<DVec2>]| -> f64 {
+        a.iter()
+            .zip(b)
+            .flat_map(|(x, y)| x.iter().zip(y).map(|(p, q)| (*p - *q).length()))
+            .fold(0.0, f64::max)
+    };
+    let two = run(&table, 2);
+    // The first ball (after the four walls) bounces: it moves both ways along x.
+    let dx: Vec<f64> = two.windows(2).map(|f| f[1][4].x - f[0][4].x).collect();
+    assert!(dx.iter().any(|d| *d > 0.0) && dx.iter().any(|d| *d < 0.0));
+    for substeps in [1, 4, 8] {
+        let worst = apart(&two, &run(&table, substeps));
+        assert!(worst < 1e-9, "{substeps} sub-steps part from 2 by {worst:.3e}");
+    }
+    let tilted = table.replace("gravity = [0, 0]", "gravity = [0, -2]");
+    let worst = apart(&run(&tilted, 2), &run(&tilted, 4));
+    assert!(worst > 1e-3, "under gravity 4 sub-steps stayed within {worst:.3e} of 2");
 }
