@@ -161,7 +161,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "suite/smash",
-        "aedcd63abf6d91fbfb7e890dd1136b2d9a7c08f9c92712687b00b1872afb924c",
+        "47f5b8dfb80f50c1346bed9c5587186577448ca0902a107b45d8e2a0a1b1a9aa",
     ),
 ];
 
