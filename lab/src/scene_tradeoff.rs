@@ -98,7 +98,7 @@ impl ReportPages for Report {
         let judged = if self.stated_criteria {
             "Criteria: the scene's own `[criteria]`, over the measured steps."
         } else {
-            "Criteria (the scene states none): escapes (`inside`), resting drift, penetration left at the end and, without gravity, energy made, each against the reference's run."
+            "Criteria (the scene states none): escapes (`inside`), resting drift, penetration left at the end and, without gravity, energy made (and in an elastic world, energy lost), each against the reference's run."
         };
         let skipped = if self.skipped.is_empty() {
             String::new()

@@ -4,8 +4,9 @@
 //! cache keyed by the scene's content, and a candidate is picked:
 //!
 //! 1. Only candidates that hold the criteria that stay meaningful on any scene are
-//!    considered (the scene's own `[criteria]`, or escapes, resting drift, penetration and
-//!    energy made against the reference: [`failed_criteria`]); where none holds them all,
+//!    considered (the scene's own `[criteria]`, or escapes, resting drift, penetration,
+//!    energy made, and in an elastic world energy lost, against the reference:
+//!    [`failed_criteria`]); where none holds them all,
 //!    those that fail the fewest.
 //! 2. The position error is judged only over the frames where the reference is good to a
 //!    quarter of the target: where a scene's trajectories diverge (a smash, a crowd, a
@@ -129,7 +130,7 @@ impl Pick {
         let criteria = if self.stated_criteria {
             "the scene's criteria"
         } else {
-            "escapes, resting drift, penetration and energy made against the reference"
+            "escapes, resting drift, penetration and energy made or lost against the reference"
         };
         let held = if c.fails.is_empty() {
             format!(

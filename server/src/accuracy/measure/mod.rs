@@ -391,7 +391,16 @@ pub fn measure(
         agreement_by_frame,
         run: last,
     };
-    let free = subject.world(&[])?.config.gravity == DVec2::ZERO;
+    let built = subject.world(&[])?;
+    let free = built.config.gravity == DVec2::ZERO;
+    // Elastic: nothing takes energy out (no gravity, restitution 1 and no friction on
+    // every body), so a run must keep what the reference keeps.
+    let elastic = free
+        && built
+            .bodies()
+            .iter()
+            .all(|b| b.restitution >= 1.0 && b.friction == 0.0);
+    let world = Kind { free, elastic };
 
     let mut rows = Vec::with_capacity(candidates.len());
     let mut skipped = Vec::new();
@@ -440,7 +449,7 @@ pub fn measure(
             nan: r.nan,
             on_front: false,
             errors: running_worst(&by_frame, Some(&resolved_by_frame)),
-            fails: failed_criteria(r, &reference.run, stated_criteria, unit, free),
+            fails: failed_criteria(r, &reference.run, stated_criteria, unit, world),
         });
     }
     let fronts: Vec<bool> = rows.iter().map(|r| on_front(r, &rows)).collect();
@@ -482,8 +491,18 @@ fn running_worst(by_frame: &[f64], floor: Option<&[f64]>) -> Vec<f64> {
 const AT_REST: f64 = 0.02;
 /// Overlap left at the end beyond this (in sizes of the smaller body) is penetration.
 const PENETRATION: f64 = 0.01;
-/// Kinetic energy made beyond the reference's, as a share of its start.
+/// Kinetic energy made (or, in an elastic world, lost) beyond the reference's, as a
+/// share of its start.
 const ENERGY_MADE: f64 = 0.01;
+
+/// What a scene's world is, for the criteria judged against the reference.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Kind {
+    /// Without gravity.
+    pub free: bool,
+    /// Without gravity, every body of restitution 1 and friction 0: energy is kept.
+    pub elastic: bool,
+}
 
 /// What a run fails of the criteria that stay meaningful on any scene, whether or not
 /// its trajectories diverge (named as the scene's `[criteria]` fields):
@@ -495,7 +514,9 @@ const ENERGY_MADE: f64 = 0.01;
 ///   sizes; the run's drift more than that or twice the reference's), `final_overlap`
 ///   (more than 0.01 of a body's size, or twice the reference's, left at the end),
 ///   `energy_rise` (without gravity: kinetic energy made beyond the reference's by 1% of
-///   its start);
+///   its start), `energy_change` (in an elastic world: the kinetic energy at the end
+///   further from its start than the reference's by 1% of it: energy lost counts as
+///   much as energy made);
 /// - and always `non_finite`, when a number left the finite.
 ///
 /// Momentum is not judged: contacts with static bodies change it on purpose.
@@ -504,7 +525,7 @@ pub fn failed_criteria(
     reference: &Run,
     stated: bool,
     unit: f64,
-    free: bool,
+    world: Kind,
 ) -> Vec<String> {
     let mut out = Vec::new();
     if run.nan || run.figures.non_finite {
@@ -534,8 +555,11 @@ pub fn failed_criteria(
     if f.final_overlap > PENETRATION.max(2.0 * r.final_overlap) {
         out.push("final_overlap".into());
     }
-    if free && f.energy_rise > r.energy_rise + ENERGY_MADE {
+    if world.free && f.energy_rise > r.energy_rise + ENERGY_MADE {
         out.push("energy_rise".into());
+    }
+    if world.elastic && f.energy_change > r.energy_change + ENERGY_MADE {
+        out.push("energy_change".into());
     }
     out
 }

@@ -126,3 +126,63 @@ fn a_pile_against_its_reference_gains_from_more_passes_and_sub_steps() {
     assert!(many.worst_error >= report.reference.resolution);
     assert!(!report.features.particles && report.rows.iter().all(|r| r.particle_error.is_none()));
 }
+
+/// An elastic world (no gravity, restitution 1 and no friction everywhere) keeps its
+/// energy: a candidate that loses it fails the criteria, as one that makes it would, and
+/// an accuracy target never picks it however cheap it is.
+#[test]
+fn in_an_elastic_world_a_candidate_that_loses_energy_fails() {
+    let hidden = indicatif::ProgressBar::hidden();
+    let mut text = String::from(
+        "[world]\ngravity = [0, 0]\nbounds = [[0, 0], [20, 20]]\n\
+         [[generate]]\nkind = \"row\"\nid = \"wall\"\ngroup = \"walls\"\nshape = \"rect\"\n\
+         size = [20, 1]\nstart = [10, 0]\nstep = [0, 20]\ncount = 2\nmass = 0\n\
+         restitution = 1\nfriction = 0\n\
+         [[generate]]\nkind = \"row\"\nid = \"side\"\ngroup = \"walls\"\nshape = \"rect\"\n\
+         size = [1, 20]\nstart = [0, 10]\nstep = [20, 0]\ncount = 2\nmass = 0\n\
+         restitution = 1\nfriction = 0\n\
+         [[interact]]\na = \"gas\"\nb = \"gas\"\n[[interact]]\na = \"gas\"\nb = \"walls\"\n",
+    );
+    for k in 0..24 {
+        let (x, y) = (3.0 + 2.5 * (k % 6) as f64, 4.0 + 3.0 * (k / 6) as f64);
+        let (vx, vy) = (((k * 7) % 11) as f64 - 5.0, ((k * 5) % 9) as f64 - 4.0);
+        text.push_str(&format!(
+            "[[body]]\nid = \"g{k}\"\ngroup = \"gas\"\nshape = \"circle\"\nradius = 0.5\n\
+             pos = [{x}, {y}]\nvel = [{vx}, {vy}]\nrestitution = 1\nfriction = 0\n"
+        ));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("gas.toml");
+    std::fs::write(&path, &text).unwrap();
+    let subject = Subject::read(&path, 240, Vec::new()).unwrap();
+    let candidates = ["solver=impulses", "solver=impulses;relax_iterations=2"]
+        .map(|c| Candidate::parse(c).unwrap())
+        .to_vec();
+    let opts = Options {
+        max_refinements: 1,
+        ..Options::default()
+    };
+    let report = measure(&subject, Some(candidates), &opts, &hidden).unwrap();
+    let [keeps, loses] = [&report.rows[0], &report.rows[1]];
+    assert!(keeps.fails.is_empty(), "{:?}", keeps.fails);
+    assert!(
+        loses.fails.contains(&"energy_change".to_string()),
+        "{:?}",
+        loses.fails
+    );
+    // With friction on the walls the world is not elastic: losing energy is allowed.
+    let rough = text.replace(
+        "restitution = 1\nfriction = 0\n[[generate]]",
+        "restitution = 1\nfriction = 0.5\n[[generate]]",
+    );
+    assert_ne!(rough, text);
+    std::fs::write(&path, &rough).unwrap();
+    let subject = Subject::read(&path, 240, Vec::new()).unwrap();
+    let candidates = vec![Candidate::parse("solver=impulses;relax_iterations=2").unwrap()];
+    let report = measure(&subject, Some(candidates), &opts, &hidden).unwrap();
+    assert!(
+        !report.rows[0].fails.contains(&"energy_change".to_string()),
+        "{:?}",
+        report.rows[0].fails
+    );
+}
