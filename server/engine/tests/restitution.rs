@@ -197,15 +197,12 @@ fn a_gravity_free_table_moves_the_same_under_any_number_of_sub_steps() {
          [[body]]\nid = \"right\"\ngroup = \"walls\"\nshape = \"rect\"\nsize = [1, 20]\npos = [40, 10]\nmass = 0\n\
          [[interact]]\na = \"balls\"\nb = \"balls\"\n[[interact]]\na = \"balls\"\nb = \"walls\"\n",
     );
-    let balls = [
-        ([8.0, 10.0], [18.0, 1.0]),
-        ([30.0, 10.5], [-12.0, 0.0]),
-        ([20.0, 5.0], [3.0, -14.0]),
-        ([12.0, 15.0], [-9.0, 8.0]),
-        ([33.0, 4.0], [10.0, 6.0]),
-        ([25.0, 16.0], [-7.0, -11.0]),
-    ];
-    for (k, (pos, vel)) in balls.iter().enumerate() {
+    for k in 0..8 {
+        let pos = [5.0 + 4.0 * k as f64, 6.0 + 7.0 * (k % 2) as f64];
+        let vel = [
+            2.0 * ((k * 7) % 11) as f64 - 9.0,
+            2.0 * ((k * 5) % 9) as f64 - 7.0,
+        ];
         table.push_str(&format!(
             "[[body]]\nid = \"ball-{k}\"\ngroup = \"balls\"\nshape = \"circle\"\nradius = 1\n\
              pos = {pos:?}\nvel = {vel:?}\nrestitution = 0.9\nfriction = 0.1\n"
