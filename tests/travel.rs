@@ -318,10 +318,7 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         &client,
         ServerCommand::Fork {
             world: "table-chapter".into(),
-            settings: BTreeMap::from([(
-                "solver".to_string(),
-                serde_json::json!("relaxation"),
-            )]),
+            settings: BTreeMap::from([("solver".to_string(), serde_json::json!("relaxation"))]),
         },
     );
     assert!(fork.ok, "{:?}", fork.error);
@@ -374,7 +371,10 @@ fn a_users_scene_is_saved_restored_rewound_and_forked_to_the_same_bits() {
         hashes(&client, fork_end, fork_end),
         hashes(&forked, fork_end, fork_end),
     );
-    assert_ne!(a, b, "the chapter's relaxation gave the same bits as impulses");
+    assert_ne!(
+        a, b,
+        "the chapter's relaxation gave the same bits as impulses"
+    );
 
     // Both run in real time at once (60 steps a second each).
     resume(&client);

@@ -658,7 +658,8 @@ fn two_worlds_are_drawn_side_by_side_with_plots_of_how_far_they_drift_apart() {
         }),
     );
     assert!(fork.ok, "{fork:?}");
-    let forked = ricochet_protocol::client::Client::open(&server.network(), "drift-chapter").unwrap();
+    let forked =
+        ricochet_protocol::client::Client::open(&server.network(), "drift-chapter").unwrap();
     wait_answered(&forked, "the fork");
 
     let file = dir.path().join("drift.rrd");

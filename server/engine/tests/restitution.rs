@@ -230,9 +230,15 @@ fn a_gravity_free_table_moves_the_same_under_any_number_of_sub_steps() {
     assert!(dx.iter().any(|d| *d > 0.0) && dx.iter().any(|d| *d < 0.0));
     for substeps in [1, 4, 8] {
         let worst = apart(&two, &run(&table, substeps));
-        assert!(worst < 1e-9, "{substeps} sub-steps part from 2 by {worst:.3e}");
+        assert!(
+            worst < 1e-9,
+            "{substeps} sub-steps part from 2 by {worst:.3e}"
+        );
     }
     let tilted = table.replace("gravity = [0, 0]", "gravity = [0, -2]");
     let worst = apart(&run(&tilted, 2), &run(&tilted, 4));
-    assert!(worst > 1e-3, "under gravity 4 sub-steps stayed within {worst:.3e} of 2");
+    assert!(
+        worst > 1e-3,
+        "under gravity 4 sub-steps stayed within {worst:.3e} of 2"
+    );
 }
