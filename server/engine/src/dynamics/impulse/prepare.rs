@@ -155,8 +155,8 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
 /// What finding a frame's contacts found, besides the contacts.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Found {
-    /// Contacts touching (within the speculative gap a resting contact holds) or
-    /// overlapping.
+    /// Contacts touching (within the speculative gap a resting contact holds),
+    /// overlapping, or meeting within the frame.
     pub touching: u64,
     /// The deepest penetration among them.
     pub deepest: f64,
@@ -236,11 +236,6 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             if gap > reach && gap > rel.length() * frame_dt + reach {
                 continue;
             }
-            // Touching: within the gap a resting contact holds (bodies at rest settle
-            // anywhere in it, and a bounce leaves them apart, never overlapped).
-            if gap <= SPECULATIVE_GAP * size {
-                found.touching += 1;
-            }
             if gap <= 0.0 {
                 found.deepest = found.deepest.max(-gap);
             }
@@ -255,6 +250,12 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             } else {
                 approach
             };
+            // Touching: within the gap a resting contact holds (bodies at rest settle
+            // anywhere in it, and a bounce leaves them apart, never overlapped), or
+            // meeting within the frame.
+            if gap <= SPECULATIVE_GAP * size || (impact < 0.0 && gap <= -impact * frame_dt) {
+                found.touching += 1;
+            }
             let restitution = a.restitution.min(b.restitution).max(0.0);
             let accelerated = gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO;
             let bounce_speed = bounce_speed(accelerated, size);
