@@ -261,3 +261,124 @@ fn made_up_ids_flood_at_one_senders_rate(server: &Server, flooder: &Client) {
         .expect("a connected client's query is answered");
     assert!(!snapshot.is_empty());
 }
+
+/// A spy that sees a client's commands borrows its id, three ways at once: bare claims of
+/// the id, the client's own signed messages sent again, and those with a new counter (a
+/// signature that no longer holds). With signed ids (the default) the client's requests
+/// are all answered while the spy floods; with `--sender-ids connected` (the defence off)
+/// the flood spends the client's rate and its requests are refused.
+#[test]
+fn a_connected_clients_id_cannot_be_borrowed() {
+    let defended = borrowed_id_refusals(&[]);
+    let undefended = borrowed_id_refusals(&["--sender-ids", "connected"]);
+    eprintln!("requests refused while a spy borrowed the id: {defended} of 20 signed, {undefended} of 20 without the defence");
+    assert_eq!(defended, 0, "the spy spent the client's rate");
+    assert!(
+        undefended >= 5,
+        "without the defence the spy should spend the client's rate: {undefended} of 20 refused"
+    );
+}
+
+/// Of 20 requests from a client, how many are refused for its rate while a spy floods under
+/// its id (rate 20 a second, 20 at once).
+fn borrowed_id_refusals(extra: &[&str]) -> usize {
+    let world = "borrowed";
+    let mut args = vec!["--sender-rate", "20", "--sender-burst", "20"];
+    args.extend_from_slice(extra);
+    let server = Server::start("impulse.toml", world, &args);
+    server.wait_up();
+    // The spy listens, and the client connects to it as well as to the server: the spy
+    // sees the client's commands as any peer on its path could.
+    let spy_endpoint = free_endpoint();
+    let mut spy_network = server.network();
+    spy_network.listen = vec![spy_endpoint.clone()];
+    let spy = Client::open(&spy_network, world).expect("spy session");
+    let both = Network::client(Mode::Peer, vec![server.endpoint.clone(), spy_endpoint]);
+    let client = Client::open(&both, world).expect("client session");
+    type Seen = (zenoh::session::EntityGlobalId, Vec<u8>, Vec<u8>);
+    let seen: Arc<std::sync::Mutex<Vec<Seen>>> = Arc::default();
+    let _watch = {
+        let seen = seen.clone();
+        spy.session()
+            .declare_subscriber(spy.keys().cmd.clone())
+            .callback(move |sample| {
+                if let (Some(source), Some(attachment)) =
+                    (sample.source_info(), sample.attachment())
+                {
+                    seen.lock().unwrap().push((
+                        *source.source_id(),
+                        sample.payload().to_bytes().into_owned(),
+                        attachment.to_bytes().into_owned(),
+                    ));
+                }
+            })
+            .wait()
+            .expect("the spy's subscriber")
+    };
+    // Bounded: until the spy has seen a few of the client's (refused, harmless) commands.
+    let began = Instant::now();
+    while seen.lock().unwrap().len() < 3 {
+        client.send_raw(b"{}".to_vec()).expect("a command goes out");
+        assert!(began.elapsed() < TIMEOUT, "the spy never saw a command");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let captured = seen.lock().unwrap().clone();
+    let victim = captured[0].0;
+    let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flood = {
+        let done = done.clone();
+        let key = spy.keys().cmd.clone();
+        std::thread::spawn(move || {
+            let publisher = spy.session().declare_publisher(key).wait().unwrap();
+            let began = Instant::now();
+            let mut k = 0u32;
+            // Bounded: until the client is done, 20 s at most.
+            while !done.load(std::sync::atomic::Ordering::Relaxed)
+                && began.elapsed() < Duration::from_secs(20)
+            {
+                for (_, payload, attachment) in &captured {
+                    k += 1;
+                    let source = || zenoh::sample::SourceInfo::new(victim, k);
+                    publisher
+                        .put(b"{}".to_vec())
+                        .source_info(source())
+                        .wait()
+                        .unwrap();
+                    publisher
+                        .put(payload.clone())
+                        .source_info(source())
+                        .attachment(attachment.clone())
+                        .wait()
+                        .unwrap();
+                    let mut moved = attachment.clone();
+                    moved[33] = moved[33].wrapping_add(100);
+                    publisher
+                        .put(payload.clone())
+                        .source_info(source())
+                        .attachment(moved)
+                        .wait()
+                        .unwrap();
+                }
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            k
+        })
+    };
+    std::thread::sleep(Duration::from_millis(300));
+    let mut refused = 0;
+    for _ in 0..20 {
+        let reply = request(&client, Command::Server(ServerCommand::Resume));
+        if !reply.ok {
+            assert!(
+                reply.error.as_deref().unwrap_or("").contains("rate limit"),
+                "{reply:?}"
+            );
+            refused += 1;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    let sent = flood.join().expect("the flood ends");
+    eprintln!("the spy sent {} messages under the client's id", sent * 3);
+    refused
+}

@@ -645,7 +645,8 @@ fn an_info_is_answered_while_snapshots_of_a_large_world_flood() {
     let honest = server.client();
     honest.info(TIMEOUT).expect("the world answers");
     let key = honest.keys().snapshot.clone();
-    // Ten connected sessions, each querying under its own id: ten buckets of their own.
+    // Ten connected sessions, each querying under its own id, signed: ten buckets of
+    // their own.
     let flooders: Vec<_> = (0..10)
         .map(|_| {
             let client = server.client();
@@ -666,6 +667,7 @@ fn an_info_is_answered_while_snapshots_of_a_large_world_flood() {
             f.session()
                 .get(&key)
                 .source_info(zenoh::sample::SourceInfo::new(*id, k))
+                .attachment(f.identity().expect("a client signs").sign(&key, b""))
                 .timeout(Duration::from_secs(30))
                 .callback(move |reply| {
                     if let Ok(sample) = reply.result() {

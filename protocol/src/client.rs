@@ -27,6 +27,7 @@ use zenoh::sample::{Sample, SourceInfo};
 use zenoh::{Session, Wait};
 
 use crate::command::{Command, Event, Reply};
+use crate::identity::Identity;
 use crate::keys::{self, WorldKeys};
 use crate::net::Network;
 
@@ -196,18 +197,40 @@ pub struct Client {
     commands: Publisher<'static>,
     /// Numbers this client's messages (zenoh's source sequence number).
     sequence: AtomicU32,
+    /// Signs every message when the session's id is this identity's: the server then
+    /// keeps this client's rate and turns its own ([`crate::identity`]).
+    identity: Option<Arc<Identity>>,
     /// The frame stream this client watches: one frame in this many steps.
     every: u64,
 }
 
 impl Client {
-    /// Opens a session and addresses `world`.
+    /// Opens a session under a new identity and addresses `world`: every message it sends
+    /// is signed.
     pub fn open(network: &Network, world: &str) -> Result<Self> {
-        Self::with_session(network.open()?, world)
+        let identity = Arc::new(Identity::generate());
+        let session = network.open_as(&identity)?;
+        Self::with_identity(session, world, Some(identity))
     }
 
-    /// Addresses `world` over an existing session.
+    /// Addresses `world` over an existing session, unsigned: the server charges its
+    /// messages to the anonymous sender, shared by every peer that does not sign.
     pub fn with_session(session: Session, world: &str) -> Result<Self> {
+        Self::with_identity(session, world, None)
+    }
+
+    /// Addresses `world` over this client's session, under its identity.
+    pub fn alongside(&self, world: &str) -> Result<Self> {
+        Self::with_identity(self.session.clone(), world, self.identity.clone())
+    }
+
+    /// Addresses `world` over `session`, signing with `identity` (whose zenoh id the
+    /// session must have, or the server takes its messages as unsigned).
+    pub fn with_identity(
+        session: Session,
+        world: &str,
+        identity: Option<Arc<Identity>>,
+    ) -> Result<Self> {
         let keys = WorldKeys::new(world).map_err(|e| anyhow!(e))?;
         let commands = session
             .declare_publisher(keys.cmd.clone())
@@ -226,6 +249,7 @@ impl Client {
             commands,
             trust,
             sequence: AtomicU32::new(0),
+            identity,
             every: 1,
         })
     }
@@ -272,13 +296,24 @@ impl Client {
         SourceInfo::new(self.commands.id(), sn)
     }
 
+    /// The signed attachment of a message with `payload` on `key`, if this client signs.
+    fn attachment(&self, key: &str, payload: &[u8]) -> Option<Vec<u8>> {
+        self.identity.as_ref().map(|me| me.sign(key, payload))
+    }
+
+    /// The identity this client signs with, if any.
+    pub fn identity(&self) -> Option<&Arc<Identity>> {
+        self.identity.as_ref()
+    }
+
     /// Sends raw bytes as a command (tests send malformed ones).
     pub fn send_raw(&self, bytes: Vec<u8>) -> Result<()> {
-        self.commands
-            .put(bytes)
-            .source_info(self.source())
-            .wait()
-            .map_err(|e| anyhow!("send: {e}"))
+        let attachment = self.attachment(&self.keys.cmd, &bytes);
+        let mut put = self.commands.put(bytes).source_info(self.source());
+        if let Some(attachment) = attachment {
+            put = put.attachment(attachment);
+        }
+        put.wait().map_err(|e| anyhow!("send: {e}"))
     }
 
     /// Sends a command and waits for the reply. The request carries an id, so
@@ -369,6 +404,9 @@ impl Client {
                 .timeout(timeout);
             if let Some(bytes) = &payload {
                 get = get.payload(bytes.clone());
+            }
+            if let Some(attachment) = self.attachment(key, payload.as_deref().unwrap_or_default()) {
+                get = get.attachment(attachment);
             }
             get.wait().map_err(|e| anyhow!("{key}: {e}"))
         };

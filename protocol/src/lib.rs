@@ -9,6 +9,9 @@
 //! - [`dump`]: the JSON Lines frames of headless runs;
 //! - [`text`]: what of a peer's text a message may show.
 //!
+//! With the `identity` feature (the `client` feature has it):
+//! - [`identity`]: the signed attachment that proves a message's sender.
+//!
 //! With the `client` feature:
 //! - [`net`]: the network flags, zenoh session and tracing set-up every binary shares;
 //! - [`client`]: a typed zenoh client for tools, viewers and tests (and the `ricochet`
@@ -18,6 +21,8 @@ pub mod action;
 pub mod command;
 pub mod dump;
 pub mod frame;
+#[cfg(feature = "identity")]
+pub mod identity;
 pub mod keys;
 pub mod reference;
 pub mod text;

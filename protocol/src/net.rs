@@ -243,7 +243,21 @@ impl Network {
 
     /// Opens the session.
     pub fn open(&self) -> Result<Session> {
-        zenoh::open(self.config()?).wait().map_err(|e| {
+        self.open_with(self.config()?)
+    }
+
+    /// Opens the session under `identity`'s zenoh id (whatever the configuration file
+    /// says), so the messages it signs prove their sender ([`crate::identity`]).
+    pub fn open_as(&self, identity: &crate::identity::Identity) -> Result<Session> {
+        let mut config = self.config()?;
+        config
+            .insert_json5("id", &serde_json::json!(identity.zid()).to_string())
+            .map_err(|e| anyhow!("zenoh configuration id = {}: {e}", identity.zid()))?;
+        self.open_with(config)
+    }
+
+    fn open_with(&self, config: zenoh::Config) -> Result<Session> {
+        zenoh::open(config).wait().map_err(|e| {
             anyhow!(
                 "cannot open a zenoh session ({} mode, connect {:?}, listen {:?}{}): {e}",
                 self.mode_name(),

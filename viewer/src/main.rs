@@ -354,7 +354,7 @@ fn join_worlds(opts: &Opts) -> Result<Vec<(Client, WorldInfo)>> {
     for name in &opts.worlds {
         let mut client = match worlds.first() {
             None => Client::open(&network, name)?,
-            Some((first, _)) => Client::with_session(first.session().clone(), name)?,
+            Some((first, _)) => first.alongside(name)?,
         };
         let info = wait_for_world(&client, wait)?;
         tracing::info!(world = %name, scene = %info.scene, "joined");

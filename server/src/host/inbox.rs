@@ -19,9 +19,10 @@
 //! A sender is the zenoh id its session declares in zenoh's source info, which Ricochet's
 //! clients set; commands without one share a bucket. The id is the sender's own claim, so
 //! a claim keeps buckets of its own only when it names a session connected to the server
-//! ([`Peers::bucket`]); any other claim shares the anonymous sender's. The buckets share
-//! capacity fairly among honest clients, while the queue bounds and the per-frame bounds
-//! keep the step safe from any.
+//! and the message's signature proves it is from that session ([`Peers::bucket`]); any
+//! other claim shares the anonymous sender's. The buckets share capacity fairly among
+//! honest clients, while the queue bounds and the per-frame bounds keep the step safe from
+//! any.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -33,7 +34,7 @@ use zenoh::sample::Sample;
 
 use super::limiter::SenderLimiter;
 use super::outbox::Outbox;
-use super::peers::Peers;
+use super::peers::{Claim, Peers};
 
 /// Who sent a command: the zenoh id its session declares, if any.
 pub type Sender = Option<String>;
@@ -180,7 +181,15 @@ impl Inbox {
             .source_info()
             .map(|s| s.source_id().zid().to_string());
         let payload = sample.payload().to_bytes().into_owned();
-        self.offer(payload, sender, None);
+        let attachment = sample.attachment().map(|a| a.to_bytes());
+        let claim = Claim {
+            sender: &sender,
+            attachment: attachment.as_deref(),
+            key: sample.key_expr().as_str(),
+            payload: &payload,
+        };
+        let key = self.bucket(&claim);
+        self.offer(payload, sender, key, None);
     }
 
     /// A request (zenoh's queryable callback).
@@ -190,10 +199,27 @@ impl Inbox {
             .payload()
             .map(|p| p.to_bytes().into_owned())
             .unwrap_or_default();
-        self.offer(payload, sender, Some(query));
+        let attachment = query.attachment().map(|a| a.to_bytes());
+        let claim = Claim {
+            sender: &sender,
+            attachment: attachment.as_deref(),
+            key: query.key_expr().as_str(),
+            payload: &payload,
+        };
+        let key = self.bucket(&claim);
+        self.offer(payload, sender, key, Some(query));
     }
 
-    fn offer(&self, payload: Vec<u8>, sender: Sender, query: Option<Query>) {
+    /// Whose buckets a claim is charged to; a message larger than the command bound is
+    /// not verified (it is refused whoever sent it).
+    fn bucket(&self, claim: &Claim) -> Sender {
+        if claim.payload.len() > self.limits.command_bytes {
+            return None;
+        }
+        self.peers.bucket(claim)
+    }
+
+    fn offer(&self, payload: Vec<u8>, sender: Sender, key: Sender, query: Option<Query>) {
         tracing::trace!(
             ?sender,
             request = query.is_some(),
@@ -210,7 +236,6 @@ impl Inbox {
             );
             return self.refuse(query, frame, error, &self.turned.unanswered.too_large);
         }
-        let key = self.peers.bucket(&sender);
         if !self.commands.take(&key) {
             self.turned.rate_limited.fetch_add(1, Ordering::Relaxed);
             let error = format!(
@@ -271,9 +296,15 @@ impl Inbox {
 
     /// A query for what the server already has (zenoh's queryable callback).
     pub fn offer_query(&self, ask: Ask, query: Query) {
-        let sender = self
-            .peers
-            .bucket(&query.source_info().map(|s| s.source_id().zid().to_string()));
+        let claimed = query.source_info().map(|s| s.source_id().zid().to_string());
+        let attachment = query.attachment().map(|a| a.to_bytes());
+        let payload = query.payload().map(|p| p.to_bytes());
+        let sender = self.bucket(&Claim {
+            sender: &claimed,
+            attachment: attachment.as_deref(),
+            key: query.key_expr().as_str(),
+            payload: payload.as_deref().unwrap_or_default(),
+        });
         let mut q = self.lock();
         let waiting = match ask {
             Ask::Info => q.infos.len(),
@@ -330,6 +361,11 @@ mod tests {
         Inbox::new(limits, Outbox::detached(), Peers::trusting())
     }
 
+    /// A command whose claim is taken as it is.
+    fn offer(inbox: &Inbox, payload: Vec<u8>, sender: Sender) {
+        inbox.offer(payload, sender.clone(), sender, None);
+    }
+
     fn take_all(inbox: &Inbox) -> Vec<(Sender, u8)> {
         std::iter::from_fn(|| inbox.next())
             .map(|i| (i.sender, i.payload[0]))
@@ -341,11 +377,11 @@ mod tests {
         let inbox = inbox(100);
         let (a, b) = (Some("a".to_string()), Some("b".to_string()));
         for n in 0..5 {
-            inbox.offer(vec![n], a.clone(), None);
+            offer(&inbox, vec![n], a.clone());
         }
-        inbox.offer(vec![10], b.clone(), None);
-        inbox.offer(vec![11], b.clone(), None);
-        inbox.offer(vec![20], None, None);
+        offer(&inbox, vec![10], b.clone());
+        offer(&inbox, vec![11], b.clone());
+        offer(&inbox, vec![20], None);
         let order = take_all(&inbox);
         assert_eq!(
             order,
@@ -368,15 +404,15 @@ mod tests {
         let inbox = inbox(3);
         let a = Some("a".to_string());
         for n in 0..10 {
-            inbox.offer(vec![n], a.clone(), None);
+            offer(&inbox, vec![n], a.clone());
         }
-        inbox.offer(vec![99], Some("b".into()), None);
+        offer(&inbox, vec![99], Some("b".into()));
         assert_eq!(inbox.turned.queue_full.load(Ordering::Relaxed), 7);
         let order = take_all(&inbox);
         assert_eq!(order.len(), 4, "{order:?}");
         assert!(order.contains(&(Some("b".into()), 99)));
         // Too large for the command limit: refused before queueing.
-        inbox.offer(vec![0; 70_000], a.clone(), None);
+        offer(&inbox, vec![0; 70_000], a.clone());
         assert_eq!(inbox.turned.too_large.load(Ordering::Relaxed), 1);
         assert!(inbox.next().is_none());
     }

@@ -146,9 +146,8 @@ pub struct HostOptions {
     pub max_frame_bytes: u64,
     /// Per-sender rates and queue bounds (the command size bound is `limits`').
     pub inbox: InboxLimits,
-    /// Every claimed sender id keeps buckets of its own, connected or not
-    /// ([`peers::Peers::trusting`]; `--sender-ids claimed`).
-    pub trust_claimed_senders: bool,
+    /// Which claimed sender ids keep buckets of their own ([`peers`]; `--sender-ids`).
+    pub sender_ids: peers::SenderIds,
     /// How much of the stepping thread's time commands may take ([`budget`]).
     pub budget: BudgetLimits,
     /// Journal every accepted command and stepped frame to this file ([`journal`]).
@@ -187,7 +186,7 @@ impl HostOptions {
             max_rate: 1000.0,
             max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
             inbox: InboxLimits::default(),
-            trust_claimed_senders: false,
+            sender_ids: peers::SenderIds::Signed,
             budget: BudgetLimits::default(),
             journal: None,
             resume: None,

@@ -123,14 +123,15 @@ impl Wiring {
             .wait()
             .map_err(z)?;
         let outbox = Outbox::start(events);
-        let (peers, transports) = if opts.trust_claimed_senders {
+        let (peers, transports) = if opts.sender_ids == peers::SenderIds::Claimed {
             (peers::Peers::trusting(), None)
         } else {
             // In client mode the server's only transport is to the router it dialled.
             let client_mode = server_config(opts)?
                 .get_json("mode")
                 .is_ok_and(|mode| mode.contains("client"));
-            let (peers, listener) = peers::Peers::watch(session, client_mode).map_err(z)?;
+            let (peers, listener) =
+                peers::Peers::watch(session, client_mode, opts.sender_ids).map_err(z)?;
             (peers, Some(listener))
         };
         let inbox = Arc::new(Inbox::new(

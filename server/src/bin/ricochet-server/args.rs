@@ -122,12 +122,14 @@ pub struct RunArgs {
         value_name = "N"
     )]
     pub sender_burst: f64,
-    /// Which claimed sender ids keep rate buckets and budgets of their own: `connected`,
-    /// only ids of sessions connected to the server (any other claim is the anonymous
-    /// sender's, so one process cannot claim many); `claimed`, every id as claimed (for
-    /// clients that reach the server through other peers; through a router, claims are
-    /// taken as they are whatever this says).
-    #[arg(help_heading = "Peers and their commands", long, value_enum, default_value_t = SenderIds::Connected, value_name = "WHICH")]
+    /// Which claimed sender ids keep rate buckets and budgets of their own: `signed`,
+    /// only ids of sessions connected to the server, on messages signed by the key the id
+    /// names and never seen before (any other claim is the anonymous sender's, so one
+    /// process can neither claim many ids nor spend another client's); `connected`, ids of
+    /// connected sessions, signed or not (a peer that sees a client's id can spend its
+    /// rate); `claimed`, every id as claimed. Through a router the server dialled, a
+    /// signed claim is taken whatever session it names.
+    #[arg(help_heading = "Peers and their commands", long, value_enum, default_value_t = SenderIds::Signed, value_name = "WHICH")]
     pub sender_ids: SenderIds,
     /// Fraction of real time the commands of all senders may take of the stepping
     /// thread, over time: each command is priced by what it touches before it runs and
@@ -315,7 +317,11 @@ impl RunArgs {
             dump: self.dump,
             max_rate: self.max_rate,
             max_frame_bytes: self.max_frame_bytes,
-            trust_claimed_senders: self.sender_ids == SenderIds::Claimed,
+            sender_ids: match self.sender_ids {
+                SenderIds::Signed => ricochet_server::host::peers::SenderIds::Signed,
+                SenderIds::Connected => ricochet_server::host::peers::SenderIds::Connected,
+                SenderIds::Claimed => ricochet_server::host::peers::SenderIds::Claimed,
+            },
             budget: BudgetLimits {
                 share: self.command_share,
                 sender_share: self.sender_share,
@@ -415,6 +421,7 @@ pub struct SimulateArgs {
 /// Which claimed sender ids keep buckets of their own (`--sender-ids`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum SenderIds {
+    Signed,
     Connected,
     Claimed,
 }
