@@ -382,3 +382,67 @@ fn borrowed_id_refusals(extra: &[&str]) -> usize {
     eprintln!("the spy sent {} messages under the client's id", sent * 3);
     refused
 }
+
+/// The Python client signs its requests as the Rust one does: while an unsigned session
+/// floods (spending the anonymous sender's rate), its requests are answered under a rate of
+/// its own. With its signing turned off in the script, they share the flooded rate and are
+/// refused, which shows the test can tell.
+#[test]
+fn the_python_clients_requests_are_signed_and_keep_their_own_rate() {
+    let server = Server::start(
+        "impulse.toml",
+        "pysigned",
+        &["--sender-rate", "5", "--sender-burst", "10"],
+    );
+    server.wait_up();
+    let flooder = Client::with_session(server.network().open().expect("a session"), "pysigned")
+        .expect("an unsigned client");
+    let done = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let flood = {
+        let done = done.clone();
+        std::thread::spawn(move || {
+            let began = Instant::now();
+            // Bounded: until the Python runs are done, 60 s at most.
+            while !done.load(std::sync::atomic::Ordering::Relaxed)
+                && began.elapsed() < Duration::from_secs(60)
+            {
+                flooder.send_raw(b"{}".to_vec()).unwrap();
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        })
+    };
+    std::thread::sleep(Duration::from_millis(300));
+    let run = |signed: bool| -> (usize, usize) {
+        let unsign = if signed {
+            ""
+        } else {
+            "ricochet.session.ids.of_session = lambda zid: None\n"
+        };
+        let script = format!(
+            "import ricochet, ricochet.session\n{unsign}\
+             w = ricochet.World.connect({endpoint:?}, world='pysigned', attempts=1)\n\
+             replies = [w.send_raw({{'do': 'resume'}}) for _ in range(8)]\n\
+             print(sum(r.ok for r in replies), sum('rate limit' in (r.error or '') for r in replies))\n",
+            endpoint = server.endpoint
+        );
+        let out = ok(&Process::new(python())
+            .args(["-c", &script])
+            .output()
+            .expect("python runs"));
+        let counts: Vec<usize> = out.split_whitespace().map(|n| n.parse().unwrap()).collect();
+        (counts[0], counts[1])
+    };
+    let (signed_ok, _) = run(true);
+    let (unsigned_ok, unsigned_limited) = run(false);
+    done.store(true, std::sync::atomic::Ordering::Relaxed);
+    flood.join().unwrap();
+    eprintln!("while an unsigned session floods: {signed_ok} of 8 signed requests answered, {unsigned_ok} of 8 unsigned ({unsigned_limited} refused for the rate)");
+    assert_eq!(
+        signed_ok, 8,
+        "the Python client's signed requests kept their own rate"
+    );
+    assert!(
+        unsigned_limited >= 4,
+        "unsigned, the Python client shares the flooded rate: {unsigned_ok} of 8 answered"
+    );
+}

@@ -15,6 +15,11 @@
 //! - **Made-up sender ids**: one session floods `snapshot` queries, each claiming one of
 //!   20 sender ids of sessions connected to nothing. Measured: queries answered a second.
 //!   Switched off: `--sender-ids claimed` (every claim keeps buckets of its own).
+//! - **A borrowed sender id**: a spy on a client's path sees its commands and floods under
+//!   its id (bare claims, the client's signed messages sent again, and those with a new
+//!   counter), while the client makes a request every 50 ms at a rate of 20 a second.
+//!   Measured: the client's requests answered. Switched off: `--sender-ids connected`
+//!   (claims of connected sessions taken unsigned).
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -253,6 +258,109 @@ fn claimed_ids(scenes: &Path, seconds: f64, defended: bool) -> Result<f64> {
     Ok(answered as f64 / began.elapsed().as_secs_f64())
 }
 
+/// The share of a client's requests answered while a spy floods under its id.
+fn borrowed_id(scenes: &Path, seconds: f64, defended: bool) -> Result<f64> {
+    let mut args: Vec<String> = vec![
+        "--scene".into(),
+        scenes.join("impulse.toml").display().to_string(),
+    ];
+    args.extend(["--sender-rate", "20", "--sender-burst", "20"].map(str::to_string));
+    if !defended {
+        args.extend(["--sender-ids", "connected"].map(str::to_string));
+    }
+    let world = "hostile-borrowed";
+    let (_server, network) = serve(world, &args)?;
+    // The spy listens, and the client connects to it as well as to the server.
+    let spy_endpoint = free_endpoint()?;
+    let mut spy_network = network.clone();
+    spy_network.listen = vec![spy_endpoint.clone()];
+    let spy = Client::open(&spy_network, world)?;
+    let mut both = network.clone();
+    both.connect.push(spy_endpoint);
+    let client = Client::open(&both, world)?;
+    type Seen = (zenoh::session::EntityGlobalId, Vec<u8>, Vec<u8>);
+    let seen: Arc<std::sync::Mutex<Vec<Seen>>> = Arc::default();
+    let _watch = {
+        let seen = seen.clone();
+        spy.session()
+            .declare_subscriber(spy.keys().cmd.clone())
+            .callback(move |sample| {
+                if let (Some(source), Some(attachment)) =
+                    (sample.source_info(), sample.attachment())
+                {
+                    seen.lock().unwrap_or_else(|e| e.into_inner()).push((
+                        *source.source_id(),
+                        sample.payload().to_bytes().into_owned(),
+                        attachment.to_bytes().into_owned(),
+                    ));
+                }
+            })
+            .wait()
+            .map_err(|e| anyhow!("{e}"))?
+    };
+    let began = Instant::now();
+    while seen.lock().unwrap_or_else(|e| e.into_inner()).len() < 3 {
+        client.send_raw(b"{}".to_vec())?;
+        if began.elapsed() > Duration::from_secs(10) {
+            return Err(anyhow!("the spy never saw the client's commands"));
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let captured = seen.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    let victim = captured[0].0;
+    let stop = Arc::new(AtomicBool::new(false));
+    let flood = {
+        let stop = stop.clone();
+        let key = spy.keys().cmd.clone();
+        std::thread::spawn(move || -> Result<()> {
+            let publisher = spy
+                .session()
+                .declare_publisher(key)
+                .wait()
+                .map_err(|e| anyhow!("{e}"))?;
+            let mut k = 0u32;
+            while !stop.load(Ordering::Relaxed) {
+                for (_, payload, attachment) in &captured {
+                    k = k.wrapping_add(1);
+                    let source = || zenoh::sample::SourceInfo::new(victim, k);
+                    let mut moved = attachment.clone();
+                    moved[33] = moved[33].wrapping_add(100);
+                    for (body, proof) in [
+                        (b"{}".to_vec(), None),
+                        (payload.clone(), Some(attachment.clone())),
+                        (payload.clone(), Some(moved)),
+                    ] {
+                        let mut put = publisher.put(body).source_info(source());
+                        if let Some(proof) = proof {
+                            put = put.attachment(proof);
+                        }
+                        put.wait().map_err(|e| anyhow!("{e}"))?;
+                    }
+                }
+                std::thread::sleep(Duration::from_micros(200));
+            }
+            Ok(())
+        })
+    };
+    std::thread::sleep(Duration::from_millis(300));
+    let began = Instant::now();
+    let (mut sent, mut answered) = (0u32, 0u32);
+    while began.elapsed().as_secs_f64() < seconds {
+        sent += 1;
+        let reply = client.request(
+            &Command::Server(ServerCommand::Resume),
+            Duration::from_secs(5),
+        )?;
+        answered += u32::from(reply.ok);
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    stop.store(true, Ordering::Relaxed);
+    flood
+        .join()
+        .map_err(|_| anyhow!("the spy's flood panicked"))??;
+    Ok(f64::from(answered) / f64::from(sent.max(1)))
+}
+
 /// Runs every attack for `seconds` each, with its defence and without.
 pub fn run(scenes: &Path, seconds: f64) -> Result<HostileReport> {
     let dir = tempfile::tempdir()?;
@@ -279,6 +387,13 @@ pub fn run(scenes: &Path, seconds: f64) -> Result<HostileReport> {
             measure: "queries answered a second (one sender may make 50 a second, 100 at once)",
             defended: format!("{:.0}", claimed_ids(scenes, seconds, true)?),
             undefended: format!("{:.0}", claimed_ids(scenes, seconds, false)?),
+        },
+        Attack {
+            name: "a spy that sees a client's commands floods under the client's id (bare claims, its signed messages again, and with new counters)",
+            defence: "a claim keeps its own buckets only when signed by the key its id derives from, each counter once (`--sender-ids signed`)",
+            measure: "the client's requests answered (20 a second allowed; it makes one every 50 ms)",
+            defended: percent(borrowed_id(scenes, seconds, true)?),
+            undefended: percent(borrowed_id(scenes, seconds, false)?),
         },
     ];
     Ok(HostileReport { attacks, seconds })

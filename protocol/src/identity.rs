@@ -18,7 +18,8 @@
 //! The attachment is [`ATTACHMENT_BYTES`] bytes: the version byte [`VERSION`], the public
 //! key (32 bytes), the counter (u64, little-endian), the signature (64 bytes). What is
 //! signed is [`DOMAIN`], the key expression, a zero byte, the counter (u64 little-endian),
-//! then the payload. docs/protocol.md gives the layout for clients in other languages.
+//! then the payload. docs/network.md, "Sender ids", gives the layout for clients in other
+//! languages.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 

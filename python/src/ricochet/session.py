@@ -13,6 +13,7 @@ from typing import Any
 
 import zenoh
 
+from . import identity as ids
 from .errors import ConnectionFailed, NoReply, RicochetError
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -24,7 +25,9 @@ def open_session(
 ) -> zenoh.Session:
     """A zenoh session: from `config` (a json5 file, as the Rust binaries read it) with
     `mode` and `connect` merged over it, or else peer mode to `connect` (by default the
-    server's default endpoint), multicast scouting off."""
+    server's default endpoint), multicast scouting off. It is opened under a new signing
+    identity (its zenoh id is the identity's), so its requests prove their sender."""
+    me = ids.Identity()
     try:
         if config:
             conf = zenoh.Config.from_file(config)
@@ -37,7 +40,10 @@ def open_session(
             conf.insert_json5("mode", json.dumps(mode or "peer"))
             conf.insert_json5("connect/endpoints", json.dumps(list(connect) or [DEFAULT_ENDPOINT]))
             conf.insert_json5("scouting/multicast/enabled", "false")
-        return zenoh.open(conf)
+        conf.insert_json5("id", json.dumps(me.zid))
+        session = zenoh.open(conf)
+        ids.remember(me)
+        return session
     except zenoh.ZError as e:
         where = ", ".join(connect) or (config or DEFAULT_ENDPOINT)
         raise ConnectionFailed(f"cannot open a zenoh session to {where}: {e}") from None
@@ -68,12 +74,22 @@ def servers(session: zenoh.Session, world: str, timeout: float) -> list[str]:
 class Sender:
     """Names this client as the sender of its requests, as the Rust client does: zenoh's
     source info carries the id of a publisher this session declares (on the world's
-    command key) and a sequence number. The server keeps a rate bucket and the remembered
-    answers per sender; requests without one share the anonymous sender's."""
+    command key) and a sequence number, and the attachment signs the request when the
+    session was opened by `open_session`. The server keeps a rate bucket and the
+    remembered answers per sender; requests without a signature share the anonymous
+    sender's."""
 
     def __init__(self, session: zenoh.Session, world: str) -> None:
         self.publisher = session.declare_publisher(f"ricochet/{world}/cmd")
         self.sequence = 0
+        self.identity = ids.of_session(str(session.zid()))
+
+    def extra(self, key: str, payload: bytes | None) -> dict[str, Any]:
+        """What a query on `key` with `payload` carries to name this sender."""
+        out: dict[str, Any] = {"source_info": self.source_info()}
+        if self.identity is not None:
+            out["attachment"] = self.identity.sign(key, payload or b"")
+        return out
 
     def source_info(self) -> zenoh.SourceInfo:
         self.sequence += 1
@@ -97,7 +113,7 @@ class Server:
         refused."""
         known: list[str] | None = None
         among: dict[str, list[zenoh.Reply]] = {}
-        extra: dict[str, Any] = {"source_info": sender.source_info()} if sender is not None else {}
+        extra: dict[str, Any] = sender.extra(key, payload) if sender is not None else {}
         for reply in self.session.get(
             key, payload=payload, timeout=timeout, consolidation=zenoh.ConsolidationMode.NONE, **extra
         ):
@@ -129,9 +145,9 @@ class Server:
                 f"liveliness token ({', '.join(known or [])}): refusing their replies"
             )
 
-    def fetch(self, key: str, timeout: float) -> bytes | None:
+    def fetch(self, key: str, timeout: float, sender: Sender | None = None) -> bytes | None:
         """The payload of the server's reply on `key`, or None."""
-        for reply in self.replies(key, timeout):
+        for reply in self.replies(key, timeout, sender=sender):
             if reply.ok is not None:
                 return bytes(reply.ok.payload.to_bytes())
         return None

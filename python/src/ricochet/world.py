@@ -142,7 +142,7 @@ class World:
     def info(self) -> dict[str, Any]:
         """What the world's `info` key says: scene, bounds, dt, groups, templates,
         saves, streams, whether it is paused."""
-        payload = self._server.fetch(f"ricochet/{self.name}/info", self.timeout)
+        payload = self._server.fetch(f"ricochet/{self.name}/info", self.timeout, self._sender)
         if payload is None:
             raise NoReply(f"no answer on ricochet/{self.name}/info within {self.timeout} s")
         info: dict[str, Any] = json.loads(payload)
@@ -238,7 +238,7 @@ class World:
         sub = session.declare_subscriber(f"ricochet/{name}/frame")
         try:
             for key in ("snapshot", "state"):
-                payload = self._server.fetch(f"ricochet/{name}/{key}", self.timeout)
+                payload = self._server.fetch(f"ricochet/{name}/{key}", self.timeout, self._sender)
                 if payload is not None:
                     yield payload
             # Frames are taken from the world's server only: the server puts each with
