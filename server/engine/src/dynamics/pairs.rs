@@ -13,6 +13,18 @@
 //! bodies cost nothing at all until the layout changes (bodies added, removed or moved by
 //! hand, interactions declared), which rebuilds the set.
 //!
+//! **A frame of reference of its own.** A fat box is grown by how far its body may travel,
+//! so a crowd moving together (a heavy body pushing hundreds ahead of it, a rain falling)
+//! would have every box grown by the crowd's speed and overlapping hundreds of others,
+//! though the bodies hardly move against each other. Whether two bodies can meet within
+//! a step depends only on how they move against each other, so the set keeps its boxes in
+//! a frame moving at a velocity of its own ([`PairSet::frame_velocity`]): a box is grown
+//! by how far its body travels in that frame, and any frame finds every pair that can
+//! meet. The frame is the median velocity of the bodies in play, taken when that halves
+//! the travel summed over them (at a rebuild, or in a step that moved a quarter of the
+//! boxes); most worlds keep the frame at rest. In a moving frame the static bodies move
+//! too, and are looked at every step.
+//!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
 //! is deterministic: the pairs are exactly the eligible pairs whose fat boxes overlap,
 //! whatever a body's tier or the tree's shape. They live in [`Contacts`], the one home of
@@ -141,12 +153,36 @@ pub struct PairSet {
     searching: Vec<bool>,
     /// Bodies re-inserted over the set's life (a figure for tests and benchmarks).
     pub reinserted: u64,
+    /// The velocity of the frame the fat boxes are kept in (see the module's notes).
+    #[serde(default)]
+    frame_velocity: DVec2,
+    /// Where that frame is: a body's box at `pos` is at `pos - shift` in it.
+    #[serde(default)]
+    shift: DVec2,
+    /// The step the frame moved by since the last update (the `dt` it was given).
+    #[serde(default)]
+    last_dt: f64,
+    /// The placed bodies static for good (looked at every step when the frame moves).
+    #[serde(default)]
+    statics: Vec<u32>,
+    /// Scratch for the median velocity.
+    #[serde(skip)]
+    speeds: Vec<f64>,
 }
 
-/// How far a body may travel during a step of `dt` plus a tenth of its size: its box
-/// grown by this must stay inside its fat box.
-fn reach(body: &Body, dt: f64) -> f64 {
-    body.vel.length() * dt + 0.1 * body.shape.half_extents().max_element()
+/// How far a body may travel during a step of `dt`, in a frame moving at `frame`, plus a
+/// tenth of its size: its box grown by this must stay inside its fat box.
+fn reach(body: &Body, frame: DVec2, dt: f64) -> f64 {
+    (velocity(body) - frame).length() * dt + 0.1 * body.shape.half_extents().max_element()
+}
+
+/// A body's velocity as the set sees it (a body static for good has none).
+fn velocity(body: &Body) -> DVec2 {
+    if fixed(body) {
+        DVec2::ZERO
+    } else {
+        body.vel
+    }
 }
 
 /// A body that is static for good (a sleeper is only frozen for the step).
@@ -187,15 +223,22 @@ impl PairSet {
         if self.index.capacity() != self.fat.len() {
             self.reindex();
         }
+        self.shift += self.frame_velocity * self.last_dt;
+        self.last_dt = dt;
         self.moved.clear();
-        for &i in movers {
+        let still = self.frame_velocity == DVec2::ZERO;
+        let statics = std::mem::take(&mut self.statics);
+        for &i in movers
+            .iter()
+            .chain(if still { &[][..] } else { &statics[..] })
+        {
             let body = &bodies[i as usize];
             let f = self.fat[i as usize];
             if !f.placed {
                 continue;
             }
-            let r = reach(body, dt);
-            let Aabb { min, max } = Aabb::of(&body.shape, body.pos);
+            let r = reach(body, self.frame_velocity, dt);
+            let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
             if min.x - r >= f.min.x
                 && min.y - r >= f.min.y
                 && max.x + r <= f.max.x
@@ -209,8 +252,17 @@ impl PairSet {
             self.index.insert(i, min, max);
             self.moved.push(i);
         }
+        self.statics = statics;
         if self.moved.is_empty() {
             return;
+        }
+        if self.moved.len() * 4 >= self.placed() {
+            if let Some(frame) = self.better_frame(bodies) {
+                self.frame_velocity = frame;
+                self.shift = DVec2::ZERO;
+                self.search_all(pairs, bodies, dt);
+                return;
+            }
         }
         self.index.flush();
         self.reinserted += self.moved.len() as u64;
@@ -248,6 +300,16 @@ impl PairSet {
                     self.groups
                 ),
             );
+        }
+        if !(self.frame_velocity.is_finite() && self.shift.is_finite() && self.last_dt.is_finite())
+        {
+            return bad(
+                "frame_velocity",
+                "the set's frame of reference is not finite".into(),
+            );
+        }
+        if let Some(&i) = self.statics.iter().find(|&&i| i as usize >= n) {
+            return bad("statics", format!("body {i} of a world of {n} bodies"));
         }
         if !(self.cell.is_finite() && self.cell >= 1e-9) {
             return bad(
@@ -354,25 +416,21 @@ impl PairSet {
             Fat {
                 min: DVec2::ZERO,
                 max: DVec2::ZERO,
-                placed: false,
+                placed: true,
             },
         );
-        for (i, &p) in play.iter().enumerate() {
-            if p {
-                self.place(bodies, i as u32, dt);
-            }
+        for (f, &p) in self.fat.iter_mut().zip(&play) {
+            f.placed = p;
         }
-        self.reindex();
-        self.found.clear();
-        self.searching.clear();
-        self.searching.extend_from_slice(&play);
-        for (i, &p) in play.iter().enumerate() {
-            if p {
-                self.neighbours(bodies, i as u32);
-            }
-        }
+        self.statics.clear();
+        self.statics.extend(
+            (0..bodies.len() as u32).filter(|&i| play[i as usize] && fixed(&bodies[i as usize])),
+        );
+        self.frame_velocity = DVec2::ZERO;
+        self.frame_velocity = self.better_frame(bodies).unwrap_or(DVec2::ZERO);
+        self.shift = DVec2::ZERO;
         pairs.clear();
-        self.merge_found(pairs);
+        self.search_all(pairs, bodies, dt);
         if !old.is_empty() {
             for p in pairs.iter_mut() {
                 let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
@@ -385,15 +443,75 @@ impl PairSet {
         }
     }
 
-    /// Gives body `i` a fat box around where it is now (the caller puts it in the index).
+    /// Bodies in the index.
+    fn placed(&self) -> usize {
+        self.fat.iter().filter(|f| f.placed).count()
+    }
+
+    /// The median velocity of the placed bodies (those static for good at rest), when the
+    /// travel summed over them in a frame moving at it is at most half what it is in the
+    /// set's frame now; else none.
+    fn better_frame(&mut self, bodies: &[Body]) -> Option<DVec2> {
+        let placed = || {
+            self.fat
+                .iter()
+                .zip(bodies)
+                .filter(|(f, _)| f.placed)
+                .map(|(_, b)| velocity(b))
+        };
+        let travel = |frame: DVec2| placed().map(|v| (v - frame).length()).sum::<f64>();
+        let now = travel(self.frame_velocity);
+        if !(now > 0.0) {
+            return None;
+        }
+        let mut median = [0.0; 2];
+        for (axis, m) in median.iter_mut().enumerate() {
+            let mut speeds = std::mem::take(&mut self.speeds);
+            speeds.clear();
+            speeds.extend(placed().map(|v| v[axis]));
+            let half = speeds.len() / 2;
+            *m = *speeds.select_nth_unstable_by(half, f64::total_cmp).1;
+            self.speeds = speeds;
+        }
+        let frame = DVec2::from(median);
+        (frame.is_finite() && travel(frame) <= 0.5 * now).then_some(frame)
+    }
+
+    /// Places every body in play again in the set's frame and finds all its pairs; the
+    /// pairs found again keep their impulses.
+    fn search_all(&mut self, pairs: &mut Vec<Pair>, bodies: &[Body], dt: f64) {
+        self.last_dt = dt;
+        for i in 0..self.fat.len() as u32 {
+            if self.fat[i as usize].placed {
+                self.place(bodies, i, dt);
+            }
+        }
+        self.reindex();
+        self.found.clear();
+        self.searching.clear();
+        self.searching.extend(self.fat.iter().map(|f| f.placed));
+        for i in 0..self.fat.len() as u32 {
+            if self.fat[i as usize].placed {
+                self.neighbours(bodies, i);
+            }
+        }
+        let fat = &self.fat;
+        pairs.retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
+        self.merge_found(pairs);
+    }
+
+    /// Gives body `i` a fat box around where it is now in the set's frame (the caller puts
+    /// it in the index).
     fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
         let body = &bodies[i as usize];
-        let Aabb { min, max } = Aabb::of(&body.shape, body.pos);
-        // Room for two steps of travel and a quarter of the body's size.
-        let m = if fixed(body) {
+        let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
+        // Room for two steps of travel in the frame and a quarter of the body's size (a
+        // body static for good in a frame at rest needs none).
+        let travel = (velocity(body) - self.frame_velocity).length();
+        let m = if fixed(body) && travel == 0.0 {
             0.0
         } else {
-            2.0 * body.vel.length() * dt + 0.25 * body.shape.half_extents().max_element()
+            2.0 * travel * dt + 0.25 * body.shape.half_extents().max_element()
         };
         let (min, max) = (min - m, max + m);
         self.fat[i as usize] = Fat {
@@ -454,291 +572,4 @@ impl PairSet {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::geometry::Shape;
-    use proptest::prelude::*;
-
-    fn body(i: u32, x: f64, y: f64, w: f64, h: f64, inv_mass: f64, group: GroupId) -> Body {
-        Body {
-            key: super::super::body::BodyKey(i),
-            group,
-            ..Body::for_test(Shape::rect(w, h), DVec2::new(x, y), DVec2::ZERO, inv_mass)
-        }
-    }
-
-    /// Every pair whose bodies' boxes overlap and that must be resolved.
-    fn touching(bodies: &[Body], resolving: &[(GroupId, GroupId)]) -> Vec<(u32, u32)> {
-        let mut out = Vec::new();
-        for i in 0..bodies.len() {
-            for j in i + 1..bodies.len() {
-                let (p, q) = (&bodies[i], &bodies[j]);
-                let named = resolving
-                    .iter()
-                    .any(|&(a, b)| (a, b) == (p.group, q.group) || (b, a) == (p.group, q.group));
-                let (bp, bq) = (Aabb::of(&p.shape, p.pos), Aabb::of(&q.shape, q.pos));
-                let overlap = bp.min.x <= bq.max.x
-                    && bq.min.x <= bp.max.x
-                    && bp.min.y <= bq.max.y
-                    && bq.min.y <= bp.max.y;
-                if named && overlap && !(p.is_static() && q.is_static()) {
-                    out.push((i as u32, j as u32));
-                }
-            }
-        }
-        out
-    }
-
-    proptest! {
-        /// After any sequence of moves, every touching pair is a candidate, candidates are
-        /// sorted and unique, and none joins two static bodies or groups no interaction
-        /// names.
-        #[test]
-        fn kept_pairs_cover_every_touching_pair_after_moves(
-            boxes in proptest::collection::vec(
-                (0.0f64..60.0, 0.0f64..60.0, 0.2f64..6.0, 0.2f64..6.0, 0u8..4, 0u16..3), 2..60),
-            moves in proptest::collection::vec((0usize..60, -8.0f64..8.0, -8.0f64..8.0), 0..40),
-        ) {
-            // A static floor far larger than the other bodies, too.
-            let mut bodies = vec![body(0, 30.0, -1.0, 400.0, 2.0, 0.0, 0)];
-            bodies.extend(boxes.iter().enumerate().map(|(k, &(x, y, w, h, s, g))| {
-                body(k as u32 + 1, x, y, w, h, if s == 0 { 0.0 } else { 1.0 }, g)
-            }));
-            let resolving = [(0, 1), (1, 1)];
-            let movers: Vec<u32> = (0..bodies.len() as u32)
-                .filter(|&i| !bodies[i as usize].is_static())
-                .collect();
-            let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
-            let dt = 1.0 / 60.0;
-            set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
-            for (k, dx, dy) in moves {
-                if let Some(&i) = movers.get(k % movers.len().max(1)) {
-                    let b = &mut bodies[i as usize];
-                    b.vel = DVec2::new(dx, dy) * 30.0;
-                    b.pos += DVec2::new(dx, dy);
-                }
-                set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
-                let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
-                prop_assert!(kept.windows(2).all(|w| w[0] < w[1]), "sorted, unique");
-                for p in &contacts.pairs {
-                    let (a, b) = (&bodies[p.a as usize], &bodies[p.b as usize]);
-                    prop_assert!(!(a.is_static() && b.is_static()));
-                    prop_assert!(a.group != 2 && b.group != 2);
-                }
-                for t in touching(&bodies, &resolving) {
-                    prop_assert!(kept.binary_search(&t).is_ok(), "missing {:?}", t);
-                }
-            }
-        }
-    }
-
-    /// Every eligible pair whose fat boxes overlap, by brute force over every pair: what
-    /// the set must hold, exactly.
-    fn overlapping_fat_boxes(set: &PairSet, bodies: &[Body]) -> Vec<(u32, u32)> {
-        let mut out = Vec::new();
-        for i in 0..bodies.len() as u32 {
-            for j in i + 1..bodies.len() as u32 {
-                let (p, q) = (&set.fat[i as usize], &set.fat[j as usize]);
-                if p.placed
-                    && q.placed
-                    && overlap(p, q)
-                    && eligible(&set.resolves, set.groups, bodies, i, j)
-                {
-                    out.push((i, j));
-                }
-            }
-        }
-        out
-    }
-
-    proptest! {
-        /// Boxes from 1e-2 to 1e2 across, moved, thrown fast, added and removed: the kept
-        /// pairs are exactly the eligible pairs whose fat boxes overlap, and they hold
-        /// every pair whose boxes touch.
-        #[test]
-        fn kept_pairs_are_exactly_the_overlapping_fat_boxes_whatever_the_sizes(
-            boxes in proptest::collection::vec(
-                (-60.0f64..60.0, -60.0f64..60.0, -2.0f64..2.0, -2.0f64..2.0, 0u8..5, 0u16..3),
-                2..50),
-            ops in proptest::collection::vec(
-                (0u8..5, 0usize..64, -1.0f64..1.0, -1.0f64..1.0, -2.0f64..2.0), 1..40),
-        ) {
-            // Sides of 10^-2 to 10^2, even in the logarithm.
-            let make = |key: u32, x: f64, y: f64, w: f64, h: f64, s: u8, g: GroupId| {
-                let inv_mass = if s == 0 { 0.0 } else { 1.0 };
-                body(key, x, y, 10f64.powf(w), 10f64.powf(h), inv_mass, g)
-            };
-            let mut bodies: Vec<Body> = boxes
-                .iter()
-                .enumerate()
-                .map(|(k, &(x, y, w, h, s, g))| make(k as u32, x, y, w, h, s, g))
-                .collect();
-            let mut key = bodies.len() as u32;
-            let resolving = [(0, 1), (1, 1)];
-            let movers = |bodies: &[Body]| -> Vec<u32> {
-                (0..bodies.len() as u32)
-                    .filter(|&i| !bodies[i as usize].is_static())
-                    .collect()
-            };
-            let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
-            let (dt, mut revision) = (1.0 / 60.0, 1);
-            set.update(&mut contacts, &bodies, revision, &resolving, &movers(&bodies), dt);
-            for (op, k, dx, dy, e) in ops {
-                let n = bodies.len();
-                match op {
-                    // A move of up to 10^e, at the speed it takes in a step.
-                    0..=2 => {
-                        let b = &mut bodies[k % n];
-                        if !b.is_static() {
-                            let d = DVec2::new(dx, dy) * 10f64.powf(e);
-                            b.vel = d / dt;
-                            b.pos += d;
-                        }
-                    }
-                    // A body added, of sides 10^e by 10^-e.
-                    3 => {
-                        bodies.push(make(key, dx * 60.0, dy * 60.0, e, -e, k as u8 % 5, k as u16 % 3));
-                        key += 1;
-                        revision += 1;
-                    }
-                    // A body removed.
-                    _ => {
-                        if n > 2 {
-                            let mut removed = vec![false; n];
-                            removed[k % n] = true;
-                            bodies.remove(k % n);
-                            contacts.remove_bodies(&removed);
-                            revision += 1;
-                        }
-                    }
-                }
-                set.update(&mut contacts, &bodies, revision, &resolving, &movers(&bodies), dt);
-                let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
-                prop_assert_eq!(&kept, &overlapping_fat_boxes(&set, &bodies));
-                for t in touching(&bodies, &resolving) {
-                    prop_assert!(kept.binary_search(&t).is_ok(), "missing {:?}", t);
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn a_restored_set_builds_its_tree_again_and_keeps_its_pairs() {
-        let mut bodies: Vec<Body> = (0..30)
-            .map(|k| body(k, (k % 6) as f64, (k / 6) as f64, 1.0, 1.0, 1.0, 1))
-            .collect();
-        bodies.push(body(30, 2.5, -40.0, 80.0, 78.0, 0.0, 0));
-        let movers: Vec<u32> = (0..30).collect();
-        let resolving = [(0, 1), (1, 1)];
-        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
-        let dt = 1.0 / 60.0;
-        set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
-        let bytes = serde_json::to_vec(&set).unwrap();
-        let mut restored: PairSet = serde_json::from_slice(&bytes).unwrap();
-        let mut again = contacts.clone();
-        for step in 0..20 {
-            bodies[step % 30].pos += DVec2::new(3.0, 0.5);
-            bodies[step % 30].vel = DVec2::new(180.0, 30.0);
-            set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
-            restored.update(&mut again, &bodies, 1, &resolving, &movers, dt);
-            assert_eq!(contacts.pairs, again.pairs);
-        }
-        assert_eq!(restored.index.capacity(), 31);
-        // The floor and the thrown bodies cover more cells than the grid keeps.
-        assert!(restored.index.in_tree() > 1);
-    }
-
-    #[test]
-    fn bodies_at_rest_are_never_looked_at_again_and_impulses_survive_a_rebuild() {
-        let mut bodies: Vec<Body> = (0..10)
-            .map(|k| body(k, 0.0, 0.5 + k as f64, 1.0, 1.0, 1.0, 1))
-            .collect();
-        bodies.push(body(10, 0.0, -1.0, 100.0, 2.0, 0.0, 0));
-        let movers: Vec<u32> = (0..10).collect();
-        let resolving = [(0, 1), (1, 1)];
-        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
-        set.update(&mut contacts, &bodies, 1, &resolving, &movers, 1.0 / 60.0);
-        // Nine box-on-box contacts and the bottom box on the floor.
-        let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
-        assert!(
-            kept.contains(&(0, 10)) && kept.contains(&(8, 9)),
-            "{kept:?}"
-        );
-        for _ in 0..100 {
-            set.update(&mut contacts, &bodies, 1, &resolving, &movers, 1.0 / 60.0);
-        }
-        assert_eq!(set.reinserted, 0);
-        // A new layout (a body removed in front) keeps the impulses by body key.
-        contacts
-            .pairs
-            .iter_mut()
-            .for_each(|p| p.normal_impulse = (p.a * 100 + p.b) as f64);
-        let before: Vec<(u32, u32, f64)> = contacts
-            .pairs
-            .iter()
-            .map(|p| {
-                (
-                    bodies[p.a as usize].key.0,
-                    bodies[p.b as usize].key.0,
-                    p.normal_impulse,
-                )
-            })
-            .collect();
-        bodies.remove(5);
-        let mut removed = vec![false; 11];
-        removed[5] = true;
-        contacts.remove_bodies(&removed);
-        set.update(
-            &mut contacts,
-            &bodies,
-            2,
-            &resolving,
-            &(0..9).collect::<Vec<_>>(),
-            1.0 / 60.0,
-        );
-        for p in &contacts.pairs {
-            let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
-            if let Some(&(_, _, j)) = before.iter().find(|&&(a, b, _)| (a, b) == (ka, kb)) {
-                assert_eq!(p.normal_impulse, j);
-            }
-        }
-        assert!(contacts.pairs.iter().any(|p| p.normal_impulse > 0.0));
-    }
-
-    #[test]
-    fn a_refill_keeps_the_impulses_of_the_pairs_found_again_and_removal_renumbers() {
-        let mut contacts = Contacts::default();
-        let mut kept = Vec::new();
-        contacts.refill(&mut vec![(2, 1), (0, 3), (1, 2), (3, 4)], &mut kept);
-        let found: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
-        assert_eq!(found, [(0, 3), (1, 2), (3, 4)]);
-        for p in &mut contacts.pairs {
-            p.normal = DVec2::Y;
-            p.normal_impulse = (p.a * 10 + p.b) as f64;
-        }
-        // (0, 3) has no impulse left: it comes back cold, normal and all.
-        contacts.pairs[0].normal_impulse = 0.0;
-        contacts.refill(&mut vec![(4, 3), (0, 3), (2, 5), (1, 2)], &mut kept);
-        let found: Vec<(u32, u32, f64, DVec2)> = contacts
-            .pairs
-            .iter()
-            .map(|p| (p.a, p.b, p.normal_impulse, p.normal))
-            .collect();
-        assert_eq!(
-            found,
-            [
-                (0, 3, 0.0, DVec2::ZERO),
-                (1, 2, 12.0, DVec2::Y),
-                (2, 5, 0.0, DVec2::ZERO),
-                (3, 4, 34.0, DVec2::Y)
-            ]
-        );
-        contacts.remove_bodies(&[false, false, true, false, false, false]);
-        let left: Vec<(u32, u32, f64)> = contacts
-            .pairs
-            .iter()
-            .map(|p| (p.a, p.b, p.normal_impulse))
-            .collect();
-        assert_eq!(left, [(0, 2, 0.0), (2, 3, 34.0)]);
-    }
-}
+mod tests;

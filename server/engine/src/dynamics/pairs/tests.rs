@@ -1,0 +1,397 @@
+//! The pair set's tests: candidates against brute force, in frames at rest and moving.
+
+use super::*;
+use crate::geometry::Shape;
+use proptest::prelude::*;
+
+fn body(i: u32, x: f64, y: f64, w: f64, h: f64, inv_mass: f64, group: GroupId) -> Body {
+    Body {
+        key: super::super::body::BodyKey(i),
+        group,
+        ..Body::for_test(Shape::rect(w, h), DVec2::new(x, y), DVec2::ZERO, inv_mass)
+    }
+}
+
+/// Every pair whose bodies' boxes overlap and that must be resolved.
+fn touching(bodies: &[Body], resolving: &[(GroupId, GroupId)]) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    for i in 0..bodies.len() {
+        for j in i + 1..bodies.len() {
+            let (p, q) = (&bodies[i], &bodies[j]);
+            let named = resolving
+                .iter()
+                .any(|&(a, b)| (a, b) == (p.group, q.group) || (b, a) == (p.group, q.group));
+            let (bp, bq) = (Aabb::of(&p.shape, p.pos), Aabb::of(&q.shape, q.pos));
+            let overlap = bp.min.x <= bq.max.x
+                && bq.min.x <= bp.max.x
+                && bp.min.y <= bq.max.y
+                && bq.min.y <= bp.max.y;
+            if named && overlap && !(p.is_static() && q.is_static()) {
+                out.push((i as u32, j as u32));
+            }
+        }
+    }
+    out
+}
+
+proptest! {
+    /// After any sequence of moves, every touching pair is a candidate, candidates are
+    /// sorted and unique, and none joins two static bodies or groups no interaction
+    /// names.
+    #[test]
+    fn kept_pairs_cover_every_touching_pair_after_moves(
+        boxes in proptest::collection::vec(
+            (0.0f64..60.0, 0.0f64..60.0, 0.2f64..6.0, 0.2f64..6.0, 0u8..4, 0u16..3), 2..60),
+        moves in proptest::collection::vec((0usize..60, -8.0f64..8.0, -8.0f64..8.0), 0..40),
+    ) {
+        // A static floor far larger than the other bodies, too.
+        let mut bodies = vec![body(0, 30.0, -1.0, 400.0, 2.0, 0.0, 0)];
+        bodies.extend(boxes.iter().enumerate().map(|(k, &(x, y, w, h, s, g))| {
+            body(k as u32 + 1, x, y, w, h, if s == 0 { 0.0 } else { 1.0 }, g)
+        }));
+        let resolving = [(0, 1), (1, 1)];
+        let movers: Vec<u32> = (0..bodies.len() as u32)
+            .filter(|&i| !bodies[i as usize].is_static())
+            .collect();
+        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+        let dt = 1.0 / 60.0;
+        set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+        for (k, dx, dy) in moves {
+            if let Some(&i) = movers.get(k % movers.len().max(1)) {
+                let b = &mut bodies[i as usize];
+                b.vel = DVec2::new(dx, dy) * 30.0;
+                b.pos += DVec2::new(dx, dy);
+            }
+            set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+            let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+            prop_assert!(kept.windows(2).all(|w| w[0] < w[1]), "sorted, unique");
+            for p in &contacts.pairs {
+                let (a, b) = (&bodies[p.a as usize], &bodies[p.b as usize]);
+                prop_assert!(!(a.is_static() && b.is_static()));
+                prop_assert!(a.group != 2 && b.group != 2);
+            }
+            for t in touching(&bodies, &resolving) {
+                prop_assert!(kept.binary_search(&t).is_ok(), "missing {:?}", t);
+            }
+        }
+    }
+}
+
+/// Every eligible pair whose fat boxes overlap, by brute force over every pair: what
+/// the set must hold, exactly.
+fn overlapping_fat_boxes(set: &PairSet, bodies: &[Body]) -> Vec<(u32, u32)> {
+    let mut out = Vec::new();
+    for i in 0..bodies.len() as u32 {
+        for j in i + 1..bodies.len() as u32 {
+            let (p, q) = (&set.fat[i as usize], &set.fat[j as usize]);
+            if p.placed
+                && q.placed
+                && overlap(p, q)
+                && eligible(&set.resolves, set.groups, bodies, i, j)
+            {
+                out.push((i, j));
+            }
+        }
+    }
+    out
+}
+
+proptest! {
+    /// Boxes from 1e-2 to 1e2 across, moved, thrown fast, added and removed: the kept
+    /// pairs are exactly the eligible pairs whose fat boxes overlap, and they hold
+    /// every pair whose boxes touch.
+    #[test]
+    fn kept_pairs_are_exactly_the_overlapping_fat_boxes_whatever_the_sizes(
+        boxes in proptest::collection::vec(
+            (-60.0f64..60.0, -60.0f64..60.0, -2.0f64..2.0, -2.0f64..2.0, 0u8..5, 0u16..3),
+            2..50),
+        ops in proptest::collection::vec(
+            (0u8..5, 0usize..64, -1.0f64..1.0, -1.0f64..1.0, -2.0f64..2.0), 1..40),
+    ) {
+        // Sides of 10^-2 to 10^2, even in the logarithm.
+        let make = |key: u32, x: f64, y: f64, w: f64, h: f64, s: u8, g: GroupId| {
+            let inv_mass = if s == 0 { 0.0 } else { 1.0 };
+            body(key, x, y, 10f64.powf(w), 10f64.powf(h), inv_mass, g)
+        };
+        let mut bodies: Vec<Body> = boxes
+            .iter()
+            .enumerate()
+            .map(|(k, &(x, y, w, h, s, g))| make(k as u32, x, y, w, h, s, g))
+            .collect();
+        let mut key = bodies.len() as u32;
+        let resolving = [(0, 1), (1, 1)];
+        let movers = |bodies: &[Body]| -> Vec<u32> {
+            (0..bodies.len() as u32)
+                .filter(|&i| !bodies[i as usize].is_static())
+                .collect()
+        };
+        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+        let (dt, mut revision) = (1.0 / 60.0, 1);
+        set.update(&mut contacts, &bodies, revision, &resolving, &movers(&bodies), dt);
+        for (op, k, dx, dy, e) in ops {
+            let n = bodies.len();
+            match op {
+                // A move of up to 10^e, at the speed it takes in a step.
+                0..=2 => {
+                    let b = &mut bodies[k % n];
+                    if !b.is_static() {
+                        let d = DVec2::new(dx, dy) * 10f64.powf(e);
+                        b.vel = d / dt;
+                        b.pos += d;
+                    }
+                }
+                // A body added, of sides 10^e by 10^-e.
+                3 => {
+                    bodies.push(make(key, dx * 60.0, dy * 60.0, e, -e, k as u8 % 5, k as u16 % 3));
+                    key += 1;
+                    revision += 1;
+                }
+                // A body removed.
+                _ => {
+                    if n > 2 {
+                        let mut removed = vec![false; n];
+                        removed[k % n] = true;
+                        bodies.remove(k % n);
+                        contacts.remove_bodies(&removed);
+                        revision += 1;
+                    }
+                }
+            }
+            set.update(&mut contacts, &bodies, revision, &resolving, &movers(&bodies), dt);
+            let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+            prop_assert_eq!(&kept, &overlapping_fat_boxes(&set, &bodies));
+            for t in touching(&bodies, &resolving) {
+                prop_assert!(kept.binary_search(&t).is_ok(), "missing {:?}", t);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_restored_set_builds_its_tree_again_and_keeps_its_pairs() {
+    let mut bodies: Vec<Body> = (0..30)
+        .map(|k| body(k, (k % 6) as f64, (k / 6) as f64, 1.0, 1.0, 1.0, 1))
+        .collect();
+    bodies.push(body(30, 2.5, -40.0, 80.0, 78.0, 0.0, 0));
+    let movers: Vec<u32> = (0..30).collect();
+    let resolving = [(0, 1), (1, 1)];
+    let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+    let dt = 1.0 / 60.0;
+    set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+    let bytes = serde_json::to_vec(&set).unwrap();
+    let mut restored: PairSet = serde_json::from_slice(&bytes).unwrap();
+    let mut again = contacts.clone();
+    for step in 0..20 {
+        bodies[step % 30].pos += DVec2::new(3.0, 0.5);
+        bodies[step % 30].vel = DVec2::new(180.0, 30.0);
+        set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+        restored.update(&mut again, &bodies, 1, &resolving, &movers, dt);
+        assert_eq!(contacts.pairs, again.pairs);
+    }
+    assert_eq!(restored.index.capacity(), 31);
+    // The floor and the thrown bodies cover more cells than the grid keeps.
+    assert!(restored.index.in_tree() > 1);
+}
+
+#[test]
+fn bodies_at_rest_are_never_looked_at_again_and_impulses_survive_a_rebuild() {
+    let mut bodies: Vec<Body> = (0..10)
+        .map(|k| body(k, 0.0, 0.5 + k as f64, 1.0, 1.0, 1.0, 1))
+        .collect();
+    bodies.push(body(10, 0.0, -1.0, 100.0, 2.0, 0.0, 0));
+    let movers: Vec<u32> = (0..10).collect();
+    let resolving = [(0, 1), (1, 1)];
+    let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+    set.update(&mut contacts, &bodies, 1, &resolving, &movers, 1.0 / 60.0);
+    // Nine box-on-box contacts and the bottom box on the floor.
+    let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+    assert!(
+        kept.contains(&(0, 10)) && kept.contains(&(8, 9)),
+        "{kept:?}"
+    );
+    for _ in 0..100 {
+        set.update(&mut contacts, &bodies, 1, &resolving, &movers, 1.0 / 60.0);
+    }
+    assert_eq!(set.reinserted, 0);
+    // A new layout (a body removed in front) keeps the impulses by body key.
+    contacts
+        .pairs
+        .iter_mut()
+        .for_each(|p| p.normal_impulse = (p.a * 100 + p.b) as f64);
+    let before: Vec<(u32, u32, f64)> = contacts
+        .pairs
+        .iter()
+        .map(|p| {
+            (
+                bodies[p.a as usize].key.0,
+                bodies[p.b as usize].key.0,
+                p.normal_impulse,
+            )
+        })
+        .collect();
+    bodies.remove(5);
+    let mut removed = vec![false; 11];
+    removed[5] = true;
+    contacts.remove_bodies(&removed);
+    set.update(
+        &mut contacts,
+        &bodies,
+        2,
+        &resolving,
+        &(0..9).collect::<Vec<_>>(),
+        1.0 / 60.0,
+    );
+    for p in &contacts.pairs {
+        let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
+        if let Some(&(_, _, j)) = before.iter().find(|&&(a, b, _)| (a, b) == (ka, kb)) {
+            assert_eq!(p.normal_impulse, j);
+        }
+    }
+    assert!(contacts.pairs.iter().any(|p| p.normal_impulse > 0.0));
+}
+
+#[test]
+fn a_refill_keeps_the_impulses_of_the_pairs_found_again_and_removal_renumbers() {
+    let mut contacts = Contacts::default();
+    let mut kept = Vec::new();
+    contacts.refill(&mut vec![(2, 1), (0, 3), (1, 2), (3, 4)], &mut kept);
+    let found: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+    assert_eq!(found, [(0, 3), (1, 2), (3, 4)]);
+    for p in &mut contacts.pairs {
+        p.normal = DVec2::Y;
+        p.normal_impulse = (p.a * 10 + p.b) as f64;
+    }
+    // (0, 3) has no impulse left: it comes back cold, normal and all.
+    contacts.pairs[0].normal_impulse = 0.0;
+    contacts.refill(&mut vec![(4, 3), (0, 3), (2, 5), (1, 2)], &mut kept);
+    let found: Vec<(u32, u32, f64, DVec2)> = contacts
+        .pairs
+        .iter()
+        .map(|p| (p.a, p.b, p.normal_impulse, p.normal))
+        .collect();
+    assert_eq!(
+        found,
+        [
+            (0, 3, 0.0, DVec2::ZERO),
+            (1, 2, 12.0, DVec2::Y),
+            (2, 5, 0.0, DVec2::ZERO),
+            (3, 4, 34.0, DVec2::Y)
+        ]
+    );
+    contacts.remove_bodies(&[false, false, true, false, false, false]);
+    let left: Vec<(u32, u32, f64)> = contacts
+        .pairs
+        .iter()
+        .map(|p| (p.a, p.b, p.normal_impulse))
+        .collect();
+    assert_eq!(left, [(0, 2, 0.0), (2, 3, 34.0)]);
+}
+
+/// Every eligible pair whose bodies' boxes overlap at some moment of the coming step of
+/// `dt`, their velocities held (looked at in eight slices).
+fn meeting(bodies: &[Body], resolving: &[(GroupId, GroupId)], dt: f64) -> Vec<(u32, u32)> {
+    let mut out: Vec<(u32, u32)> = (0..=8)
+        .flat_map(|k| {
+            let t = dt * k as f64 / 8.0;
+            let moved: Vec<Body> = bodies
+                .iter()
+                .map(|b| Body {
+                    pos: b.pos + b.vel * t,
+                    ..b.clone()
+                })
+                .collect();
+            touching(&moved, resolving)
+        })
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+proptest! {
+    /// A crowd moving together at up to 300 u/s, each body with a velocity of its own
+    /// besides, over a static floor: at every step, every pair that meets within the step
+    /// is a candidate, whatever frame the set chose.
+    #[test]
+    fn a_moving_crowd_keeps_every_pair_that_meets_within_a_step(
+        boxes in proptest::collection::vec(
+            (0.0f64..40.0, 0.0f64..40.0, 0.2f64..3.0, 0.2f64..3.0, -5.0f64..5.0, -5.0f64..5.0),
+            2..50),
+        crowd in (-300.0f64..300.0, -300.0f64..300.0),
+        steps in 1usize..40,
+        kicks in proptest::collection::vec((0usize..50, -60.0f64..60.0, -60.0f64..60.0), 0..10),
+    ) {
+        let mut bodies = vec![body(0, 20.0, -1.0, 400.0, 2.0, 0.0, 0)];
+        bodies.extend(boxes.iter().enumerate().map(|(k, &(x, y, w, h, vx, vy))| Body {
+            vel: DVec2::new(crowd.0 + vx, crowd.1 + vy),
+            ..body(k as u32 + 1, x, y, w, h, 1.0, 1)
+        }));
+        let resolving = [(0, 1), (1, 1)];
+        let movers: Vec<u32> = (1..bodies.len() as u32).collect();
+        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+        let dt = 1.0 / 60.0;
+        for step in 0..steps {
+            if let Some(&(k, dx, dy)) = kicks.get(step) {
+                let i = movers[k % movers.len()] as usize;
+                bodies[i].vel += DVec2::new(dx, dy);
+            }
+            set.update(&mut contacts, &bodies, 1, &resolving, &movers, dt);
+            let kept: Vec<(u32, u32)> = contacts.pairs.iter().map(|p| (p.a, p.b)).collect();
+            prop_assert!(kept.windows(2).all(|w| w[0] < w[1]), "sorted, unique");
+            for pair in meeting(&bodies, &resolving, dt) {
+                prop_assert!(
+                    kept.binary_search(&pair).is_ok(),
+                    "step {step}: {pair:?} meets within the step but is no candidate (frame {:?})",
+                    set.frame_velocity
+                );
+            }
+            for b in &mut bodies[1..] {
+                b.pos += b.vel * dt;
+            }
+        }
+    }
+}
+
+/// A packed crowd of 400 boxes thrown at 100 u/s keeps about the pairs it keeps at rest:
+/// the set moves its frame with the crowd instead of growing every box by the crowd's
+/// travel (which made every box overlap about 200 others).
+#[test]
+fn a_crowd_moving_together_keeps_the_pairs_of_a_crowd_at_rest() {
+    let crowd = |vel: DVec2| -> Vec<Body> {
+        (0..400u32)
+            .map(|k| Body {
+                vel,
+                ..body(
+                    k,
+                    (k % 20) as f64 * 0.5,
+                    (k / 20) as f64 * 0.5,
+                    0.5,
+                    0.5,
+                    1.0,
+                    0,
+                )
+            })
+            .collect()
+    };
+    let pairs_after = |mut bodies: Vec<Body>| -> (usize, DVec2) {
+        let movers: Vec<u32> = (0..bodies.len() as u32).collect();
+        let (mut set, mut contacts) = (PairSet::default(), Contacts::default());
+        let dt = 1.0 / 60.0;
+        for _ in 0..30 {
+            set.update(&mut contacts, &bodies, 1, &[(0, 0)], &movers, dt);
+            for b in &mut bodies {
+                b.pos += b.vel * dt;
+            }
+        }
+        (contacts.pairs.len(), set.frame_velocity)
+    };
+    let (at_rest, still) = pairs_after(crowd(DVec2::ZERO));
+    let (thrown, frame) = pairs_after(crowd(DVec2::new(100.0, 0.0)));
+    assert_eq!(still, DVec2::ZERO);
+    assert_eq!(frame, DVec2::new(100.0, 0.0));
+    assert!(
+        thrown <= at_rest,
+        "{thrown} pairs kept by the thrown crowd, {at_rest} at rest"
+    );
+    assert!(at_rest < 400 * 10, "{at_rest} pairs at rest");
+}
