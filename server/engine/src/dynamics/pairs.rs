@@ -13,14 +13,16 @@
 //! bodies cost nothing at all until the layout changes (bodies added, removed or moved by
 //! hand, interactions declared), which rebuilds the set.
 //!
-//! **A frame of reference of its own.** A fat box is grown by how far its body may travel,
-//! so a crowd moving together (a heavy body pushing hundreds ahead of it, a rain falling)
+//! **A frame of reference of its own.** A fat box is swept along its body's travel (two
+//! steps of it, and grown by a quarter of that every way, for a body turned aside within a
+//! step), so a crowd moving together (a heavy body pushing hundreds ahead of it, a rain falling)
 //! would have every box grown by the crowd's speed and overlapping hundreds of others,
 //! though the bodies hardly move against each other. Whether two bodies can meet within
 //! a step depends only on how they move against each other, so the set keeps its boxes in
-//! a frame moving at a velocity of its own ([`PairSet::frame_velocity`]): a box is grown
-//! by how far its body travels in that frame, and any frame finds every pair that can
-//! meet. The frame is the median velocity of the bodies in play, taken when that halves
+//! a frame moving at a velocity of its own (`PairSet::frame_velocity`): a box is swept
+//! along its body's travel in that frame, and any frame finds every pair that can meet.
+//! Sweeping along the travel rather than growing the box by it every way keeps a spray of
+//! bodies flying apart from overlapping each other's boxes. The frame is the median velocity of the bodies in play, taken when that halves
 //! the travel summed over them (at a rebuild, or in a step that moved a quarter of the
 //! boxes); most worlds keep the frame at rest. In a moving frame the static bodies move
 //! too, and are looked at every step.
@@ -170,10 +172,24 @@ pub struct PairSet {
     speeds: Vec<f64>,
 }
 
-/// How far a body may travel during a step of `dt`, in a frame moving at `frame`, plus a
-/// tenth of its size: its box grown by this must stay inside its fat box.
+/// How much a body's box swept along its travel during a step of `dt` (in a frame moving
+/// at `frame`) is grown every way: a share of that travel and a tenth of its size. That
+/// box must stay inside its fat box.
 fn reach(body: &Body, frame: DVec2, dt: f64) -> f64 {
-    (velocity(body) - frame).length() * dt + 0.1 * body.shape.half_extents().max_element()
+    (velocity(body) - frame).length() * dt * SIDEWAYS
+        + 0.1 * body.shape.half_extents().max_element()
+}
+
+/// How much of a body's travel its box is grown by every way, beside being swept along it:
+/// room for a body turned aside within the step (by a bounce the collision stage resolves).
+/// With none, a thrown crowd runs 10% faster and the impacts family holds 96 seeds of 100
+/// instead of 97; with all of it (a box grown by its travel every way, as before the sweep),
+/// a body's box meets every neighbour it could reach in any direction.
+const SIDEWAYS: f64 = 0.25;
+
+/// A box swept by `d`: the box and the box moved by `d`, and all between.
+fn swept(min: DVec2, max: DVec2, d: DVec2) -> (DVec2, DVec2) {
+    (min + d.min(DVec2::ZERO), max + d.max(DVec2::ZERO))
 }
 
 /// A body's velocity as the set sees it (a body static for good has none).
@@ -239,6 +255,7 @@ impl PairSet {
             }
             let r = reach(body, self.frame_velocity, dt);
             let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
+            let (min, max) = swept(min, max, (velocity(body) - self.frame_velocity) * dt);
             if min.x - r >= f.min.x
                 && min.y - r >= f.min.y
                 && max.x + r <= f.max.x
@@ -505,14 +522,16 @@ impl PairSet {
     fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
         let body = &bodies[i as usize];
         let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
-        // Room for two steps of travel in the frame and a quarter of the body's size (a
-        // body static for good in a frame at rest needs none).
+        // Swept along two steps of travel in the frame, grown by a share of that travel
+        // and a quarter of the body's size (a body static for good in a frame at rest
+        // needs none).
         let travel = (velocity(body) - self.frame_velocity).length();
         let m = if fixed(body) && travel == 0.0 {
             0.0
         } else {
-            2.0 * travel * dt + 0.25 * body.shape.half_extents().max_element()
+            2.0 * travel * dt * SIDEWAYS + 0.25 * body.shape.half_extents().max_element()
         };
+        let (min, max) = swept(min, max, 2.0 * (velocity(body) - self.frame_velocity) * dt);
         let (min, max) = (min - m, max + m);
         self.fat[i as usize] = Fat {
             min,
