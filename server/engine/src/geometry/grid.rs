@@ -33,6 +33,11 @@ pub struct Grid {
     max_cells: i64,
     cells: KeyMap<(i64, i64), Vec<u32>>,
     oversized: Vec<u32>,
+    /// Cells left empty by `remove`, kept for the next box that comes (a body moving
+    /// through the grid would otherwise free and allocate a cell at every step); swept
+    /// out when they are most of the cells.
+    #[serde(default)]
+    empty: usize,
 }
 
 impl Default for Grid {
@@ -49,6 +54,7 @@ impl Grid {
             max_cells,
             cells: KeyMap::default(),
             oversized: Vec::new(),
+            empty: 0,
         }
     }
 
@@ -57,6 +63,7 @@ impl Grid {
         self.cell = cell.max(1e-9);
         self.cells.clear();
         self.oversized.clear();
+        self.empty = 0;
     }
 
     /// The cells `x0..=x1, y0..=y1` a box covers, and how many they are (saturating).
@@ -85,7 +92,11 @@ impl Grid {
             Cells::Range(x0, y0, x1, y1) => {
                 for cx in x0..=x1 {
                     for cy in y0..=y1 {
-                        self.cells.entry((cx, cy)).or_default().push(slot);
+                        let list = self.cells.entry((cx, cy)).or_default();
+                        if list.is_empty() && list.capacity() > 0 {
+                            self.empty = self.empty.saturating_sub(1);
+                        }
+                        list.push(slot);
                     }
                 }
             }
@@ -103,12 +114,16 @@ impl Grid {
                         if let Some(list) = self.cells.get_mut(&(cx, cy)) {
                             if let Some(k) = list.iter().position(|&j| j == slot) {
                                 list.swap_remove(k);
-                            }
-                            if list.is_empty() {
-                                self.cells.remove(&(cx, cy));
+                                if list.is_empty() {
+                                    self.empty += 1;
+                                }
                             }
                         }
                     }
+                }
+                if self.empty > 1024 && self.empty * 2 > self.cells.len() {
+                    self.cells.retain(|_, list| !list.is_empty());
+                    self.empty = 0;
                 }
             }
         }
