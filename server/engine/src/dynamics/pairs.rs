@@ -167,9 +167,6 @@ pub struct PairSet {
     /// The placed bodies static for good (looked at every step when the frame moves).
     #[serde(default)]
     statics: Vec<u32>,
-    /// Updates to wait before looking for a better frame again, after a look found none.
-    #[serde(default)]
-    frame_wait: u32,
     /// Scratch for the median velocity.
     #[serde(skip)]
     speeds: Vec<f64>,
@@ -194,10 +191,6 @@ const SIDEWAYS: f64 = 0.25;
 fn swept(min: DVec2, max: DVec2, d: DVec2) -> (DVec2, DVec2) {
     (min + d.min(DVec2::ZERO), max + d.max(DVec2::ZERO))
 }
-
-/// Updates between two looks for a better frame when a look finds none: the look costs a
-/// pass over the bodies.
-const FRAME_WAIT: u32 = 8;
 
 /// A body's velocity as the set sees it (a body static for good has none).
 fn velocity(body: &Body) -> DVec2 {
@@ -280,16 +273,12 @@ impl PairSet {
         if self.moved.is_empty() {
             return;
         }
-        self.frame_wait = self.frame_wait.saturating_sub(1);
-        if self.frame_wait == 0 && self.moved.len() * 4 >= self.placed() {
-            match self.better_frame(bodies) {
-                Some(frame) => {
-                    self.frame_velocity = frame;
-                    self.shift = DVec2::ZERO;
-                    self.search_all(pairs, bodies, dt);
-                    return;
-                }
-                None => self.frame_wait = FRAME_WAIT,
+        if self.moved.len() * 4 >= self.placed() {
+            if let Some(frame) = self.better_frame(bodies) {
+                self.frame_velocity = frame;
+                self.shift = DVec2::ZERO;
+                self.search_all(pairs, bodies, dt);
+                return;
             }
         }
         self.index.flush();
