@@ -87,18 +87,6 @@ pub struct Claim<'a> {
     pub payload: &'a [u8],
 }
 
-impl Claim<'_> {
-    /// A claim with no proof.
-    pub fn bare(sender: &Sender) -> Claim<'_> {
-        Claim {
-            sender,
-            attachment: None,
-            key: "",
-            payload: &[],
-        }
-    }
-}
-
 impl Known {
     /// Whether a claim of `zid` may keep buckets of its own, signature aside.
     fn reachable(&self, zid: &str) -> bool {
@@ -234,6 +222,18 @@ mod tests {
         Peers {
             known: Some(Arc::new(Mutex::new(known))),
             signed: ids == SenderIds::Signed,
+        }
+    }
+
+    impl Claim<'_> {
+        /// A claim with no proof.
+        fn bare(sender: &Sender) -> Claim<'_> {
+            Claim {
+                sender,
+                attachment: None,
+                key: "",
+                payload: &[],
+            }
         }
     }
 

@@ -164,6 +164,9 @@ pub struct PairSet {
     /// The step the frame moved by since the last update (the `dt` it was given).
     #[serde(default)]
     last_dt: f64,
+    /// Bodies in the index (set by a rebuild, the only place that places or unplaces).
+    #[serde(default)]
+    in_play: usize,
     /// The placed bodies static for good (looked at every step when the frame moves).
     #[serde(default)]
     statics: Vec<u32>,
@@ -273,7 +276,7 @@ impl PairSet {
         if self.moved.is_empty() {
             return;
         }
-        if self.moved.len() * 4 >= self.placed() {
+        if self.moved.len() * 4 >= self.in_play {
             if let Some(frame) = self.better_frame(bodies) {
                 self.frame_velocity = frame;
                 self.shift = DVec2::ZERO;
@@ -439,6 +442,7 @@ impl PairSet {
         for (f, &p) in self.fat.iter_mut().zip(&play) {
             f.placed = p;
         }
+        self.in_play = play.iter().filter(|&&p| p).count();
         self.statics.clear();
         self.statics.extend(
             (0..bodies.len() as u32).filter(|&i| play[i as usize] && fixed(&bodies[i as usize])),
@@ -458,11 +462,6 @@ impl PairSet {
                 }
             }
         }
-    }
-
-    /// Bodies in the index.
-    fn placed(&self) -> usize {
-        self.fat.iter().filter(|f| f.placed).count()
     }
 
     /// The median velocity of the placed bodies (those static for good at rest), when the
