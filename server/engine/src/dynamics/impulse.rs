@@ -120,6 +120,9 @@ pub struct ImpulseParams {
     /// Start this frame's touching contacts from the load each carries at rest, against
     /// this direction (unit, against gravity): see [`load`]. None: as they are.
     pub rest_load: Option<DVec2>,
+    /// End each sub-step's passes with the support sweep against this direction (unit,
+    /// against gravity): see [`support`]. None: no sweep.
+    pub support: Option<DVec2>,
 }
 
 /// One body as the solver streams it.
@@ -269,6 +272,9 @@ pub struct SolverBuffers {
     /// When in the sub-step each body last collided (the collision stage's).
     #[serde(skip)]
     met: Vec<f64>,
+    /// The frame's supporting contacts, lowest first (see [`support`]).
+    #[serde(skip)]
+    supports: Vec<support::Support>,
     /// Where the frame's time went, stage by stage, when the world is profiled (`None`:
     /// no clock is read).
     #[serde(skip)]
@@ -426,10 +432,15 @@ pub fn solve_frame(
             pushed,
             slotted,
             met,
+            supports,
             ..
         } = &mut *buffers;
         if let Some(up) = params.rest_load {
             load::rest(buckets, sb, gain, bodies, slotted, h, up);
+        }
+        supports.clear();
+        if let Some(up) = params.support {
+            support::order(buckets, sb, bodies, slotted, up, supports);
         }
         clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
@@ -463,6 +474,9 @@ pub fn solve_frame(
                 gain,
                 &mut report,
             );
+            if let Some(up) = params.support {
+                support::sweep(sb, buckets, supports, up, h);
+            }
             clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());
             clock.lap(times.as_mut().map(|t| &mut t.integrate_positions));
@@ -491,6 +505,7 @@ mod blocks;
 mod load;
 mod passes;
 mod prepare;
+mod support;
 mod team;
 pub use blocks::{block_count, BLOCK_BODIES};
 

@@ -190,9 +190,12 @@ fn reach(body: &Body, frame: DVec2, dt: f64) -> f64 {
 /// a body's box meets every neighbour it could reach in any direction.
 const SIDEWAYS: f64 = 0.25;
 
-/// A box swept by `d`: the box and the box moved by `d`, and all between.
-fn swept(min: DVec2, max: DVec2, d: DVec2) -> (DVec2, DVec2) {
-    (min + d.min(DVec2::ZERO), max + d.max(DVec2::ZERO))
+/// A box swept by `d` and by `e`: the box, the box moved by either, and all between.
+fn swept_either(min: DVec2, max: DVec2, d: DVec2, e: DVec2) -> (DVec2, DVec2) {
+    (
+        min + d.min(e).min(DVec2::ZERO),
+        max + d.max(e).max(DVec2::ZERO),
+    )
 }
 
 /// A body's velocity as the set sees it (a body static for good has none).
@@ -258,7 +261,12 @@ impl PairSet {
             }
             let r = reach(body, self.frame_velocity, dt);
             let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
-            let (min, max) = swept(min, max, (velocity(body) - self.frame_velocity) * dt);
+            let (min, max) = swept_either(
+                min,
+                max,
+                (velocity(body) - self.frame_velocity) * dt,
+                -self.frame_velocity * dt,
+            );
             if min.x - r >= f.min.x
                 && min.y - r >= f.min.y
                 && max.x + r <= f.max.x
@@ -530,7 +538,12 @@ impl PairSet {
         } else {
             2.0 * travel * dt * SIDEWAYS + 0.25 * body.shape.half_extents().max_element()
         };
-        let (min, max) = swept(min, max, 2.0 * (velocity(body) - self.frame_velocity) * dt);
+        let (min, max) = swept_either(
+            min,
+            max,
+            2.0 * (velocity(body) - self.frame_velocity) * dt,
+            -2.0 * self.frame_velocity * dt,
+        );
         let (min, max) = (min - m, max + m);
         self.fat[i as usize] = Fat {
             min,

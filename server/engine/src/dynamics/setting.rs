@@ -103,6 +103,7 @@ settings! {
     StartIterations(u32) => start_iterations,
     StartFrames(u32) => start_frames,
     RestLoad(bool) => rest_load,
+    ShockPropagation(bool) => shock_propagation,
     ContactHertz(f64) => contact_hertz,
     ContactDamping(f64) => contact_damping,
     SplitImpulses(bool) => split_impulses,

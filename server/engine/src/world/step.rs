@@ -457,6 +457,10 @@ impl World {
             rest_load: (config.rest_load && self.frame == 0)
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
+            support: config
+                .shock_propagation
+                .then(|| (-config.gravity).try_normalize())
+                .flatten(),
         };
         // A profiled world times the solver's stages too (summed over the frame's calls).
         if self.profiling {

@@ -40,6 +40,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         cut_scratch,
         pushed: _,
         met: _,
+        supports: _,
         crew: _,
         last_contacts: _,
         times: _,
@@ -229,11 +230,18 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             // Too far apart to meet within the frame: no contact. (Within a tenth of
             // their size they may meet whatever their speed.)
             let reach = 0.1 * size;
-            if too_far(b.pos - a.pos, ha + hb, rel, reach, frame_dt) {
+            // How fast the pair may close: at its relative speed, or at either body's own
+            // speed should the other be stopped within the frame (a box of a falling column
+            // landing on a pile, the next box still falling onto it).
+            let closing = rel
+                .length_squared()
+                .max(a.vel.length_squared())
+                .max(b.vel.length_squared());
+            if too_far(b.pos - a.pos, ha + hb, closing, reach, frame_dt) {
                 continue;
             }
             let (gap, n) = separation(&a.shape, a.pos, &b.shape, b.pos);
-            if gap > reach && gap > rel.length() * frame_dt + reach {
+            if gap > reach && gap > closing.sqrt() * frame_dt + reach {
                 continue;
             }
             if gap <= 0.0 {
@@ -321,7 +329,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
 }
 
 /// Whether two shapes whose centres are `d` apart and whose half extents add up to `half`
-/// are sure to be too far apart to meet within `dt` at the relative velocity `rel` (the
+/// are sure to be too far apart to meet within `dt` closing at the speed whose square is
+/// `closing` (the
 /// test of [`Finder::contacts`], on the gap of their bounding boxes): without the exact
 /// separation, nor a square root. The boxes' gap is never more than the shapes', and the
 /// margins (a millionth of the reach and a few roundings of the distances, a millionth of
@@ -331,8 +340,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
 /// are rejected here (on the rain, the separation's square root and division were a third
 /// of the search).
 #[inline(always)]
-fn too_far(d: DVec2, half: DVec2, rel: DVec2, reach: f64, dt: f64) -> bool {
+fn too_far(d: DVec2, half: DVec2, closing: f64, reach: f64, dt: f64) -> bool {
     let room = (d.abs() - half).max_element() - reach;
     let rounding = 8.0 * f64::EPSILON * (d.abs().max_element() + half.max_element());
-    room > 1e-6 * reach + rounding && room * room > rel.length_squared() * (dt * dt) * (1.0 + 1e-6)
+    room > 1e-6 * reach + rounding && room * room > closing * (dt * dt) * (1.0 + 1e-6)
 }

@@ -49,6 +49,7 @@ fn params() -> ImpulseParams {
         flight: crate::dynamics::config::Integrator::Symplectic,
         threads: 1,
         rest_load: None,
+        support: None,
     }
 }
 
