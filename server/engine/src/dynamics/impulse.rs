@@ -475,7 +475,10 @@ pub fn solve_frame(
                 &mut report,
             );
             if let Some(up) = params.support {
-                support::sweep(sb, buckets, supports, up, h);
+                let push = params
+                    .split_impulses
+                    .then_some((bias.push.rate, bias.push_fixed.rate));
+                support::sweep(sb, buckets, supports, up, h, push);
             }
             clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());

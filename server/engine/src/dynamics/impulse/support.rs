@@ -12,6 +12,14 @@
 //! approaching, however deep; what it takes out is what the passes had not yet carried
 //! down, which a converged solve would have given the lower body instead.
 //!
+//! With split impulses, the same sweep carries the push-out: each upper body is pushed
+//! out of its lower one at the contact's push-out speed on top of the lower body's, and
+//! no body, however many contacts push it up or aside, faster than one contact may push
+//! ([`super::MAX_PUSH_OUT`] sizes a second). A column started overlapped opens from the
+//! ground up in a few seconds, where the passes, starting each sub-step's push-out from
+//! nothing, opened only its top contacts; and a pyramid's top no longer moves at the
+//! sum of the pushes of every contact under it.
+//!
 //! It changes only the velocities of upper bodies whose contact approaches, and only
 //! straight up: a separating or sliding contact, a bounce the collision stage made, and
 //! every contact without gravity are left alone. The impulse it gives is not kept for the
@@ -75,13 +83,15 @@ pub(super) fn order(
 
 /// One sweep over `supports` (as [`order`] left them against `up`) at the end of a
 /// sub-step `h`'s passes: each upper body stops approaching its lower one (a contact found
-/// apart may close its gap within the sub-step, no more).
+/// apart may close its gap within the sub-step, no more); with `push` (split impulses: the
+/// push-out rates against dynamic and static bodies), each is pushed out of it too.
 pub(super) fn sweep(
     sb: &mut [SolverBody],
     buckets: &[Vec<Contact>],
     supports: &[Support],
     up: DVec2,
     h: f64,
+    push: Option<(f64, f64)>,
 ) {
     for s in supports {
         let c = &buckets[s.bucket as usize][s.index as usize];
@@ -101,5 +111,28 @@ pub(super) fn sweep(
             let cos = normal.dot(up);
             sb[upper as usize].vel += up * ((target - approach) / cos);
         }
+        let Some((rate, rate_fixed)) = push else {
+            continue;
+        };
+        if c.speculative && gap > 0.0 {
+            continue;
+        }
+        let pen = (-gap - c.slop).max(0.0);
+        let rate = if c.fixed { rate_fixed } else { rate };
+        let target = (rate * pen).min(c.max_push);
+        let (u, l) = (sb[upper as usize], sb[lower as usize]);
+        let apart = (u.pseudo - l.pseudo).dot(normal);
+        let cos = normal.dot(up);
+        let mut pseudo = u.pseudo;
+        if apart < target {
+            pseudo += up * ((target - apart) / cos);
+        }
+        // However many contacts push it, up or aside, a body is pushed out no faster
+        // than one of them may push.
+        let speed = pseudo.length();
+        if speed > c.max_push {
+            pseudo *= c.max_push / speed;
+        }
+        sb[upper as usize].pseudo = pseudo;
     }
 }
