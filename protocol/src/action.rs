@@ -189,6 +189,7 @@ pub const SETTING_NAMES: &[&str] = &[
     "start_iterations",
     "start_frames",
     "rest_load",
+    "shock_propagation",
     "contact_hertz",
     "contact_damping",
     "split_impulses",

@@ -575,8 +575,12 @@ mod tests {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/pyramid-10.toml");
         let text = std::fs::read_to_string(&path).unwrap();
         let cache = tempfile::tempdir().unwrap();
-        // A cold pile (no resting load): how far it sags depends on the passes.
-        let cold = ["rest_load=false".to_string()];
+        // A cold pile (no resting load, no support sweep): how far it sags depends on the
+        // passes.
+        let cold = [
+            "rest_load=false".to_string(),
+            "shock_propagation=false".to_string(),
+        ];
         let pick = |t| {
             for_scene(&path, &text, &cold, Some(t), Some(cache.path()))
                 .unwrap()

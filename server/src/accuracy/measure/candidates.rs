@@ -126,6 +126,7 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
             "substeps=1",
             "split_impulses=false",
             "rest_load=false",
+            "shock_propagation=false",
         ],
     ));
     let with = |extra: &[&str]| -> Vec<String> {
@@ -173,6 +174,7 @@ pub fn impulse_ladder(substeps: u32, passes: u32) -> Candidate {
             format!("impulse_iterations={passes}"),
             "split_impulses=true".into(),
             "rest_load=true".into(),
+            "shock_propagation=true".into(),
             "warm_starting=true".into(),
             "relax_iterations=0".into(),
             "contact_hertz=0".into(),
