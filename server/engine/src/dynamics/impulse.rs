@@ -272,9 +272,10 @@ pub struct SolverBuffers {
     /// When in the sub-step each body last collided (the collision stage's).
     #[serde(skip)]
     met: Vec<f64>,
-    /// The frame's supporting contacts, lowest first (see [`support`]).
+    /// The frame's supporting contacts, by the body they hold up, lowest first (see
+    /// [`support`]).
     #[serde(skip)]
-    supports: Vec<support::Support>,
+    supports: support::Sweep,
     /// Where the frame's time went, stage by stage, when the world is profiled (`None`:
     /// no clock is read).
     #[serde(skip)]
@@ -438,9 +439,8 @@ pub fn solve_frame(
         if let Some(up) = params.rest_load {
             load::rest(buckets, sb, gain, bodies, slotted, h, up);
         }
-        supports.clear();
         if let Some(up) = params.support {
-            support::order(buckets, sb, bodies, slotted, up, supports);
+            supports.order(buckets, sb, bodies, slotted, up);
         }
         clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
@@ -478,7 +478,7 @@ pub fn solve_frame(
                 let push = params
                     .split_impulses
                     .then_some((bias.push.rate, bias.push_fixed.rate));
-                support::sweep(sb, buckets, supports, up, h, push);
+                supports.sweep(sb, up, h, push);
             }
             clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());

@@ -32,107 +32,162 @@ use super::load::SUPPORT_COS;
 use super::{Contact, SolverBody};
 use crate::dynamics::body::Body;
 
-/// One supporting contact: where it is among the buckets, and which of its bodies is the
-/// upper one.
+/// What the sweep reads of one supporting contact, laid out in the order it visits them
+/// (one stream instead of a look into the buckets for each).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Support {
-    bucket: u32,
-    index: u32,
-    /// The contact's `b` is the upper body (its normal points up).
-    upper_is_b: bool,
-    /// How high the upper body is.
-    height: f64,
+struct Record {
+    upper: u32,
+    lower: u32,
+    /// The contact's normal, from the lower body to the upper.
+    normal: DVec2,
+    /// Its cosine to `up`.
+    cos: f64,
+    /// Separation at the start of the frame.
+    gap: f64,
+    slop: f64,
+    max_push: f64,
+    speculative: bool,
+    fixed: bool,
 }
 
-/// Lists the contacts of `buckets` that hold a dynamic body up against `up` (unit,
-/// against gravity) into `out`, in the order the sweep visits them: by the height of the
-/// body they hold up, lowest first (ties in the contacts' order).
-pub(super) fn order(
-    buckets: &[Vec<Contact>],
-    sb: &[SolverBody],
-    bodies: &[Body],
-    slotted: &[u32],
-    up: DVec2,
-    out: &mut Vec<Support>,
-) {
-    for (k, bucket) in buckets.iter().enumerate() {
-        for (i, c) in bucket.iter().enumerate() {
+/// The frame's supporting contacts in the order the sweep visits them: by the body they
+/// hold up, those bodies lowest first. The bodies' order is kept from frame to frame and
+/// sorted again from there: a pile's bodies keep their order, so sorting it again costs a
+/// look at each. It is the order of (height, place) whatever it starts from, so the bits
+/// do not depend on it.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Sweep {
+    /// The supporting contacts as found, then in the order the sweep visits them.
+    found: Vec<Record>,
+    records: Vec<Record>,
+    /// Per solver body: how many contacts hold it up, then where its first goes.
+    count: Vec<u32>,
+    /// The solver bodies that stand on something, lowest first (ties by place).
+    order: Vec<u32>,
+    heights: Vec<f64>,
+}
+
+impl Sweep {
+    /// Finds the contacts of `buckets` that hold a dynamic body up against `up` (unit,
+    /// against gravity) and orders them for the sweep.
+    pub(super) fn order(
+        &mut self,
+        buckets: &[Vec<Contact>],
+        sb: &[SolverBody],
+        bodies: &[Body],
+        slotted: &[u32],
+        up: DVec2,
+    ) {
+        let n = sb.len();
+        self.count.clear();
+        self.count.resize(n, 0);
+        self.found.clear();
+        for c in buckets.iter().flatten() {
             let cos = c.normal.dot(up);
-            let (upper, upper_is_b) = if cos > SUPPORT_COS {
-                (c.b, true)
+            let (upper, lower, normal) = if cos > SUPPORT_COS {
+                (c.b, c.a, c.normal)
             } else if cos < -SUPPORT_COS {
-                (c.a, false)
+                (c.a, c.b, -c.normal)
             } else {
                 continue;
             };
             if sb[upper as usize].inv_mass == 0.0 {
                 continue;
             }
-            let height = bodies[slotted[upper as usize] as usize].pos.dot(up);
-            out.push(Support {
-                bucket: k as u32,
-                index: i as u32,
-                upper_is_b,
-                height,
+            self.count[upper as usize] += 1;
+            self.found.push(Record {
+                upper,
+                lower,
+                normal,
+                cos: cos.abs(),
+                gap: c.gap,
+                slop: c.slop,
+                max_push: c.max_push,
+                speculative: c.speculative,
+                fixed: c.fixed,
             });
         }
+        // The bodies that stand on something, by height: last frame's order kept where
+        // it still holds, bodies newly standing after it, then sorted (a stable sort that
+        // finds the runs already in order).
+        self.heights.clear();
+        self.heights
+            .extend(slotted.iter().map(|&i| bodies[i as usize].pos.dot(up)));
+        let count = &mut self.count;
+        self.order
+            .retain(|&s| (s as usize) < n && count[s as usize] > 0);
+        // Marked (the top bit) while listed, so none is listed twice.
+        const LISTED: u32 = 1 << 31;
+        for &s in &self.order {
+            count[s as usize] |= LISTED;
+        }
+        for (s, k) in count.iter().enumerate() {
+            if *k > 0 && *k & LISTED == 0 {
+                self.order.push(s as u32);
+            }
+        }
+        let heights = &self.heights;
+        self.order.sort_by(|&x, &y| {
+            heights[x as usize]
+                .total_cmp(&heights[y as usize])
+                .then(x.cmp(&y))
+        });
+        // Where each body's contacts go, then placed there (in the order found).
+        let mut at = 0;
+        for &s in &self.order {
+            let k = count[s as usize] & !LISTED;
+            count[s as usize] = at;
+            at += k;
+        }
+        self.records.clear();
+        self.records.extend_from_slice(&self.found);
+        for r in &self.found {
+            let place = &mut count[r.upper as usize];
+            self.records[*place as usize] = *r;
+            *place += 1;
+        }
     }
-    // A stable sort: equal heights keep the contacts' order.
-    out.sort_by(|x, y| x.height.total_cmp(&y.height));
-}
 
-/// One sweep over `supports` (as [`order`] left them against `up`) at the end of a
-/// sub-step `h`'s passes: each upper body stops approaching its lower one (a contact found
-/// apart may close its gap within the sub-step, no more); with `push` (split impulses: the
-/// push-out rates against dynamic and static bodies), each is pushed out of it too.
-pub(super) fn sweep(
-    sb: &mut [SolverBody],
-    buckets: &[Vec<Contact>],
-    supports: &[Support],
-    up: DVec2,
-    h: f64,
-    push: Option<(f64, f64)>,
-) {
-    for s in supports {
-        let c = &buckets[s.bucket as usize][s.index as usize];
-        let (upper, lower) = if s.upper_is_b { (c.b, c.a) } else { (c.a, c.b) };
-        let (u, l) = (sb[upper as usize], sb[lower as usize]);
-        let normal = if s.upper_is_b { c.normal } else { -c.normal };
-        let gap = c.gap + (sb[c.b as usize].delta - sb[c.a as usize].delta).dot(c.normal);
-        let target = if c.speculative && gap > 0.0 {
-            -gap / h
-        } else {
-            0.0
-        };
-        let approach = (u.vel - l.vel).dot(normal);
-        if approach < target {
-            // Straight up (against gravity), not along the normal: a circle on a slope of
-            // others is not pushed sideways.
-            let cos = normal.dot(up);
-            sb[upper as usize].vel += up * ((target - approach) / cos);
+    /// One sweep over the supporting contacts (as [`Sweep::order`] left them against `up`) at the end of a
+    /// sub-step `h`'s passes: each upper body stops approaching its lower one (a contact found
+    /// apart may close its gap within the sub-step, no more); with `push` (split impulses: the
+    /// push-out rates against dynamic and static bodies), each is pushed out of it too.
+    pub(super) fn sweep(&self, sb: &mut [SolverBody], up: DVec2, h: f64, push: Option<(f64, f64)>) {
+        for r in &self.records {
+            let (upper, lower) = (r.upper as usize, r.lower as usize);
+            let (u, l) = (sb[upper], sb[lower]);
+            let gap = r.gap + (u.delta - l.delta).dot(r.normal);
+            let apart = r.speculative && gap > 0.0;
+            let target = if apart { -gap / h } else { 0.0 };
+            let approach = (u.vel - l.vel).dot(r.normal);
+            if approach < target {
+                // Straight up (against gravity), not along the normal: a circle on a
+                // slope of others is not pushed sideways.
+                sb[upper].vel += up * ((target - approach) / r.cos);
+            }
+            let Some((rate, rate_fixed)) = push else {
+                continue;
+            };
+            if apart {
+                continue;
+            }
+            let pen = (-gap - r.slop).max(0.0);
+            let rate = if r.fixed { rate_fixed } else { rate };
+            let target = (rate * pen).min(r.max_push);
+            let apart = (u.pseudo - l.pseudo).dot(r.normal);
+            let mut pseudo = u.pseudo;
+            if apart < target {
+                pseudo += up * ((target - apart) / r.cos);
+            }
+            // However many contacts push it, up or aside, a body is pushed out no faster
+            // than one of them may push.
+            let speed = pseudo.length_squared();
+            if speed > r.max_push * r.max_push {
+                pseudo *= r.max_push / speed.sqrt();
+            } else if apart >= target {
+                continue;
+            }
+            sb[upper].pseudo = pseudo;
         }
-        let Some((rate, rate_fixed)) = push else {
-            continue;
-        };
-        if c.speculative && gap > 0.0 {
-            continue;
-        }
-        let pen = (-gap - c.slop).max(0.0);
-        let rate = if c.fixed { rate_fixed } else { rate };
-        let target = (rate * pen).min(c.max_push);
-        let (u, l) = (sb[upper as usize], sb[lower as usize]);
-        let apart = (u.pseudo - l.pseudo).dot(normal);
-        let cos = normal.dot(up);
-        let mut pseudo = u.pseudo;
-        if apart < target {
-            pseudo += up * ((target - apart) / cos);
-        }
-        // However many contacts push it, up or aside, a body is pushed out no faster
-        // than one of them may push.
-        let speed = pseudo.length();
-        if speed > c.max_push {
-            pseudo *= c.max_push / speed;
-        }
-        sb[upper as usize].pseudo = pseudo;
     }
 }
