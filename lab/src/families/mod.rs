@@ -234,24 +234,68 @@ pub fn markdown(runs: &[Run]) -> String {
 mod held {
     use super::*;
 
-    /// The families the default holds today, judged in full on seeds the published run
-    /// (`docs/bench/families.md`, seeds 0 to 99) never drew; the others are run and
-    /// reported by `ricochet-lab families` until the engine holds them.
-    #[test]
-    fn the_default_holds_the_bullet_elastic_and_crowd_families_on_unpublished_seeds() {
+    fn judged(families: &[Family], seeds: std::ops::Range<u64>) -> Vec<Run> {
         let dir = tempfile::tempdir().unwrap();
         let progress = indicatif::ProgressBar::hidden();
-        let runs = run(
-            &[Family::Bullets, Family::Elastic, Family::Crowds],
-            500..508,
+        run(
+            families,
+            seeds,
             &[("the default".to_string(), Vec::new())],
             dir.path(),
             &progress,
         )
-        .unwrap();
-        assert_eq!(runs.len(), 24);
+        .unwrap()
+    }
+
+    /// The families the default holds at every one of the published run's seeds
+    /// (`docs/bench/families.md`, seeds 0 to 99), judged in full on seeds it never drew.
+    #[test]
+    fn the_default_holds_the_pile_overlap_bullet_elastic_and_crowd_families_on_unpublished_seeds() {
+        let families = [
+            Family::Piles,
+            Family::Overlaps,
+            Family::Bullets,
+            Family::Elastic,
+            Family::Crowds,
+        ];
+        let runs = judged(&families, 500..508);
+        assert_eq!(runs.len(), 40);
         for r in &runs {
             assert!(r.row.holds, "{}: {}", r.file.display(), r.row.criteria);
+        }
+    }
+
+    /// The families the default holds at most seeds (rains 99, impacts 95, heavy bodies on
+    /// light ones 78 of the published 100): on seeds the published run never drew, at
+    /// least three in four hold, and none leaves its container or goes non-finite. What
+    /// fails there (a grain still creeping under a heavy box in the last second, a box
+    /// still embedded after an impact) is listed in docs/engine.md.
+    #[test]
+    fn the_default_holds_most_rains_impacts_and_heavy_bodies_on_unpublished_seeds() {
+        let families = [Family::Rains, Family::Impacts, Family::HeavyOnLight];
+        let runs = judged(&families, 500..508);
+        for family in families {
+            let of: Vec<&Run> = runs.iter().filter(|r| r.family == family).collect();
+            let held = of.iter().filter(|r| r.row.holds).count();
+            assert!(
+                held * 4 >= of.len() * 3,
+                "{}: {held} of {} held",
+                family.name(),
+                of.len()
+            );
+            for r in &of {
+                for j in &r.row.verdict {
+                    if j.name == "inside" {
+                        assert!(j.pass, "{}: {}", r.file.display(), r.row.criteria);
+                    }
+                    assert!(
+                        j.figure.is_finite(),
+                        "{}: {}",
+                        r.file.display(),
+                        r.row.criteria
+                    );
+                }
+            }
         }
     }
 }
