@@ -35,6 +35,10 @@ pub const SETTINGS: &[Setting] = &[
         overrides: &["rest_load=false"],
     },
     Setting {
+        label: "the default without the support sweep",
+        overrides: &["shock_propagation=false"],
+    },
+    Setting {
         label: "the default without split impulses",
         overrides: &["split_impulses=false", "slop=0.001"],
     },
@@ -54,6 +58,7 @@ pub const SETTINGS: &[Setting] = &[
             "split_impulses=false",
             "slop=0.001",
             "rest_load=false",
+            "shock_propagation=false",
             "broad_phase=sweep",
         ],
     },
@@ -64,6 +69,7 @@ pub const SETTINGS: &[Setting] = &[
             "start_iterations=300",
             "start_frames=20",
             "rest_load=false",
+            "shock_propagation=false",
         ],
     },
     Setting {
@@ -76,6 +82,7 @@ pub const SETTINGS: &[Setting] = &[
             "split_impulses=false",
             "slop=0.001",
             "rest_load=false",
+            "shock_propagation=false",
         ],
     },
 ];
