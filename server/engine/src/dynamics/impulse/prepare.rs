@@ -230,13 +230,18 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             // Too far apart to meet within the frame: no contact. (Within a tenth of
             // their size they may meet whatever their speed.)
             let reach = 0.1 * size;
-            // How fast the pair may close: at its relative speed, or at either body's own
-            // speed should the other be stopped within the frame (a box of a falling column
-            // landing on a pile, the next box still falling onto it).
-            let closing = rel
-                .length_squared()
-                .max(a.vel.length_squared())
-                .max(b.vel.length_squared());
+            // How fast the pair may close: at its relative speed, or, under gravity, at
+            // either body's own speed should the other be stopped within the frame (a box
+            // of a falling column landing on a pile, the next box still falling onto it).
+            // Without gravity the contacts this adds between bodies thrown together cost
+            // the impacts family 2 seeds of 100 and a seventh of its time.
+            let closing = if gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO {
+                rel.length_squared()
+                    .max(a.vel.length_squared())
+                    .max(b.vel.length_squared())
+            } else {
+                rel.length_squared()
+            };
             if too_far(b.pos - a.pos, ha + hb, closing, reach, frame_dt) {
                 continue;
             }
