@@ -173,6 +173,10 @@ pub struct PairSet {
     /// Scratch for the median velocity.
     #[serde(skip)]
     speeds: Vec<f64>,
+    /// The world's gravity, set before each update: a body it accelerates may be stopped
+    /// within a step (see [`PairSet::place`]).
+    #[serde(skip)]
+    gravity: DVec2,
 }
 
 /// How much a body's box swept along its travel during a step of `dt` (in a frame moving
@@ -196,6 +200,18 @@ fn swept_either(min: DVec2, max: DVec2, d: DVec2, e: DVec2) -> (DVec2, DVec2) {
         min + d.min(e).min(DVec2::ZERO),
         max + d.max(e).max(DVec2::ZERO),
     )
+}
+
+/// Where a body would be, against where it is, had it stopped dead within a step of `dt`
+/// in a frame moving at `frame`: a body gravity accelerates may land on something within
+/// the step (a box of a falling column on the pile) while its neighbour goes on. Without
+/// gravity, none (a crowd thrown together keeps no pairs for it).
+fn stop(body: &Body, gravity: DVec2, frame: DVec2, dt: f64) -> DVec2 {
+    if body.inv_mass > 0.0 && body.gravity.unwrap_or(gravity) != DVec2::ZERO {
+        -frame * dt
+    } else {
+        DVec2::ZERO
+    }
 }
 
 /// A body's velocity as the set sees it (a body static for good has none).
@@ -224,6 +240,11 @@ fn overlap(p: &Fat, q: &Fat) -> bool {
 }
 
 impl PairSet {
+    /// The world's gravity, for the updates that follow.
+    pub fn set_gravity(&mut self, gravity: DVec2) {
+        self.gravity = gravity;
+    }
+
     /// Brings the pairs in `contacts` up to date for a step of `dt`. `revision` is the
     /// world's layout revision (a new one rebuilds everything), `resolving` the group
     /// pairs of the resolving interactions, `movers` the bodies that may have moved since
@@ -265,7 +286,7 @@ impl PairSet {
                 min,
                 max,
                 (velocity(body) - self.frame_velocity) * dt,
-                -self.frame_velocity * dt,
+                stop(body, self.gravity, self.frame_velocity, dt),
             );
             if min.x - r >= f.min.x
                 && min.y - r >= f.min.y
@@ -542,7 +563,7 @@ impl PairSet {
             min,
             max,
             2.0 * (velocity(body) - self.frame_velocity) * dt,
-            -2.0 * self.frame_velocity * dt,
+            stop(body, self.gravity, self.frame_velocity, 2.0 * dt),
         );
         let (min, max) = (min - m, max + m);
         self.fat[i as usize] = Fat {
