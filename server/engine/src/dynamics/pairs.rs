@@ -25,7 +25,9 @@
 //! bodies flying apart from overlapping each other's boxes. The frame is the median velocity of the bodies in play, taken when that halves
 //! the travel summed over them (at a rebuild, or in a step that moved a quarter of the
 //! boxes); most worlds keep the frame at rest. In a moving frame the static bodies move
-//! too, and are looked at every step.
+//! too, and are looked at every step. Under gravity a body may also be stopped within a
+//! step by a third one (a falling box landing on a pile, its neighbour still falling), so
+//! the box of a body gravity pulls is swept back to where it would stop as well.
 //!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
 //! is deterministic: the pairs are exactly the eligible pairs whose fat boxes overlap,
@@ -38,6 +40,7 @@ use glam::DVec2;
 
 use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
+use super::integrate::acceleration_under;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
 
@@ -207,7 +210,7 @@ fn swept_either(min: DVec2, max: DVec2, d: DVec2, e: DVec2) -> (DVec2, DVec2) {
 /// the step (a box of a falling column on the pile) while its neighbour goes on. Without
 /// gravity, none (a crowd thrown together keeps no pairs for it).
 fn stop(body: &Body, gravity: DVec2, frame: DVec2, dt: f64) -> DVec2 {
-    if body.inv_mass > 0.0 && body.gravity.unwrap_or(gravity) != DVec2::ZERO {
+    if body.inv_mass > 0.0 && acceleration_under(body, gravity, false) != DVec2::ZERO {
         -frame * dt
     } else {
         DVec2::ZERO

@@ -235,7 +235,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             // of a falling column landing on a pile, the next box still falling onto it).
             // Without gravity the contacts this adds between bodies thrown together cost
             // the impacts family 2 seeds of 100 and a seventh of its time.
-            let closing = if gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO {
+            let accelerated = gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO;
+            let closing = if accelerated {
                 rel.length_squared()
                     .max(a.vel.length_squared())
                     .max(b.vel.length_squared())
@@ -270,7 +271,6 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 found.touching += 1;
             }
             let restitution = a.restitution.min(b.restitution).max(0.0);
-            let accelerated = gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO;
             let bounce_speed = bounce_speed(accelerated, size);
             let bounces = restitution > 0.0 && impact < -bounce_speed;
             let slop = params.slop * size;
