@@ -32,7 +32,7 @@ SIZES = {"tiny": 1e-3, "huge": 1e4, "mass-ratio-1000": 2.0, "coincident": 1.0, "
 DOC_SETTINGS = [
     ("stability-default", []),
     ("stability-impulses", ["impulse_iterations=8", "substeps=2", "split_impulses=false",
-                            "rest_load=false", "shock_propagation=false", "slop=0.001", "broad_phase=sweep"]),
+                            "rest_load=false", "shock_propagation=false", "exact_sliding=false", "slop=0.001", "broad_phase=sweep"]),
     ("stability-chapter", ["solver=relaxation"]),
 ]
 

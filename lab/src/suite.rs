@@ -39,6 +39,10 @@ pub const SETTINGS: &[Setting] = &[
         overrides: &["shock_propagation=false"],
     },
     Setting {
+        label: "the default without exact sliding",
+        overrides: &["exact_sliding=false"],
+    },
+    Setting {
         label: "the default without split impulses",
         overrides: &["split_impulses=false", "slop=0.001"],
     },
@@ -59,6 +63,7 @@ pub const SETTINGS: &[Setting] = &[
             "slop=0.001",
             "rest_load=false",
             "shock_propagation=false",
+            "exact_sliding=false",
             "broad_phase=sweep",
         ],
     },
@@ -70,6 +75,7 @@ pub const SETTINGS: &[Setting] = &[
             "start_frames=20",
             "rest_load=false",
             "shock_propagation=false",
+            "exact_sliding=false",
         ],
     },
     Setting {
@@ -83,6 +89,7 @@ pub const SETTINGS: &[Setting] = &[
             "slop=0.001",
             "rest_load=false",
             "shock_propagation=false",
+            "exact_sliding=false",
         ],
     },
 ];

@@ -30,9 +30,39 @@ impl Scene {
         friction: f64,
         restitution: f64,
     ) {
+        self.moving_rect(
+            id,
+            group,
+            size,
+            pos,
+            [0.0, 0.0],
+            mass,
+            friction,
+            restitution,
+        );
+    }
+
+    /// A box moving at `vel` (written only when it moves).
+    #[allow(clippy::too_many_arguments)]
+    fn moving_rect(
+        &mut self,
+        id: &str,
+        group: &str,
+        size: [f64; 2],
+        pos: [f64; 2],
+        vel: [f64; 2],
+        mass: f64,
+        friction: f64,
+        restitution: f64,
+    ) {
+        let vel = if vel == [0.0, 0.0] {
+            String::new()
+        } else {
+            format!("vel = [{}, {}]\n", n(vel[0]), n(vel[1]))
+        };
         let _ = writeln!(
             self.text,
-            "[[body]]\nid = \"{id}\"\ngroup = \"{group}\"\nshape = \"rect\"\nsize = [{}, {}]\npos = [{}, {}]\nmass = {}\nfriction = {}\nrestitution = {}\n",
+            "[[body]]\nid = \"{id}\"\ngroup = \"{group}\"\nshape = \"rect\"\nsize = [{}, {}]\npos = [{}, {}]\n{vel}mass = {}\nfriction = {}\nrestitution = {}\n",
             n(size[0]), n(size[1]), n(pos[0]), n(pos[1]), n(mass), n(friction), n(restitution)
         );
     }
@@ -794,4 +824,131 @@ pub(super) fn bullets(rng: &mut ChaCha8Rng, s: &mut Scene) {
         ],
     );
     s.note = format!("{count} circles of {r:.3} at {v:.0} u/s against a wall {t:.3} thick");
+}
+
+/// Bodies launched along the ground, or along a plank that rests on it, sliding to rest
+/// under Coulomb friction: boxes (aspect 0.25 to 4) and circles 0.05 to 20 across, 0.5 to
+/// 15 u/s (no faster than friction stops in 4 s), friction 0.1 to 1 each, gravity 2 to
+/// 30, masses 0.01 to 1000, up to 1e6 from the origin, steps of 1/240 to 1/15 s. Each
+/// slides on a lane of its own; a plank is heavy enough that its friction with the ground
+/// holds it at twice the pull of the body on it.
+pub(super) fn friction(rng: &mut ChaCha8Rng, s: &mut Scene) {
+    let size = log_uniform(rng, 0.05, 20.0);
+    let g = log_uniform(rng, 2.0, 30.0);
+    let ground_friction: f64 = rng.random_range(0.1..=1.0);
+    let far = if rng.random_bool(0.5) {
+        log_uniform(rng, 1.0, 1e6)
+    } else {
+        0.0
+    };
+    let (dt, dt_name) = STEPS_DT[rng.random_range(0..STEPS_DT.len())];
+    let count = rng.random_range(1..=8);
+    let mut bodies = Scene::default();
+    let (mut x, mut longest, mut planks) = (far, 0.0_f64, 0);
+    for k in 0..count {
+        let circle = rng.random_bool(0.3);
+        let aspect = if circle {
+            1.0
+        } else {
+            log_uniform(rng, 0.25, 4.0)
+        };
+        let (w, h) = (size * rng.random_range(0.5..=1.0), size * aspect);
+        let (w, h) = if circle { (w, w) } else { (w, h) };
+        let mass = log_uniform(rng, 0.01, 1000.0);
+        let mu: f64 = rng.random_range(0.1..=1.0);
+        let on_plank = rng.random_bool(0.4);
+        let support_mu: f64 = if on_plank {
+            rng.random_range(0.1..=1.0)
+        } else {
+            ground_friction
+        };
+        let pair = (mu * support_mu).sqrt();
+        let v = log_uniform(rng, 0.5, 15.0).min(4.0 * pair * g);
+        let distance = v * v / (2.0 * pair * g);
+        longest = longest.max(v / (pair * g));
+        let left = rng.random_bool(0.5);
+        let lane = distance + 2.0 * w + 0.1 * size;
+        // Where the body starts in its lane, and which way it goes.
+        let (start, vel) = if left { (x + lane - w, -v) } else { (x + w, v) };
+        let mut y = far;
+        if on_plank {
+            let thick = size * rng.random_range(0.2..=1.0);
+            // The plank holds when its friction with the ground takes twice what the body
+            // pulls it by: sqrt(mu_p mu_g) (m_p + m) g >= 2 sqrt(mu mu_p) m g.
+            let hold = 2.0 * (mu / ground_friction).sqrt() - 1.0;
+            let plank_mass = mass * log_uniform(rng, 1.0, 100.0).max(hold);
+            bodies.rect(
+                &format!("plank/{planks}"),
+                "bodies",
+                [lane, thick],
+                [x + lane / 2.0, far + thick / 2.0],
+                plank_mass,
+                support_mu,
+                0.0,
+            );
+            planks += 1;
+            y += thick;
+        }
+        let id = format!("slider/{k}");
+        if circle {
+            bodies.circle(
+                &id,
+                "bodies",
+                w / 2.0,
+                [start, y + w / 2.0],
+                [vel, 0.0],
+                mass,
+                mu,
+                0.0,
+            );
+        } else {
+            bodies.moving_rect(
+                &id,
+                "bodies",
+                [w, h],
+                [start, y + h / 2.0],
+                [vel, 0.0],
+                mass,
+                mu,
+                0.0,
+            );
+        }
+        x += lane + size;
+    }
+    let length = x - far;
+    let margin = 2.0 * size;
+    world(
+        s,
+        dt,
+        [0.0, -g],
+        (
+            [far - margin, far - 2.0 * size],
+            [x + margin, far + 4.0 * size],
+        ),
+    );
+    s.rect(
+        "ground",
+        "ground",
+        [length + 2.0 * margin, size],
+        [far + length / 2.0, far - size / 2.0],
+        0.0,
+        ground_friction,
+        0.0,
+    );
+    s.text.push_str(&bodies.text);
+    s.interact("bodies", "bodies");
+    s.interact("bodies", "ground");
+    let steps = ((longest + 1.5) / dt).ceil() as u64;
+    criteria(
+        s,
+        &[
+            format!("steps = {steps}"),
+            "stopping = 0.02".into(),
+            "final_overlap = 0.01".into(),
+            format!("final_speed = {}", limit(0.05 * size * 0.25)),
+        ],
+    );
+    s.note = format!(
+        "{count} bodies ({planks} on planks) about {size:.3} across sliding to rest, gravity {g:.2}, ground friction {ground_friction:.2}, {far:.3e} from the origin, dt {dt_name}"
+    );
 }

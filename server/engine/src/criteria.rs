@@ -18,6 +18,8 @@
 //!                              # start above an earlier low (worlds without gravity)
 //! energy_change = 0.02         # kinetic energy at the end within this share of its start
 //!                              # (elastic worlds: restitution 1, no friction, no gravity)
+//! stopping = 0.02              # a body built sliding on another comes to rest within this
+//!                              # share of v^2 / (2 mu g) of where it started
 //! ```
 //!
 //! Every figure is the worst over the whole run (or over its stated end); a body that
@@ -66,6 +68,14 @@ pub struct Criteria {
     /// value at the start, up or down (an elastic world keeps it).
     #[serde(default)]
     pub energy_change: Option<f64>,
+    /// Worst error of a stopping distance at the end of the run, as a share of the
+    /// distance Coulomb friction gives, `v^2 / (2 mu g)`: judged on each dynamic body built
+    /// resting on a body it interacts with (touching it, under it along gravity) and moving
+    /// across gravity at `v`; `mu` is the pair's friction (the square root of the product
+    /// of the two), `g` the body's gravity. The distance is its travel along its starting
+    /// velocity.
+    #[serde(default)]
+    pub stopping: Option<f64>,
 }
 
 fn default_steps() -> u64 {
@@ -85,6 +95,7 @@ impl Default for Criteria {
             final_speed: None,
             energy_rise: None,
             energy_change: None,
+            stopping: None,
         }
     }
 }
@@ -114,6 +125,7 @@ impl Criteria {
             ("final_speed", self.final_speed),
             ("energy_rise", self.energy_rise),
             ("energy_change", self.energy_change),
+            ("stopping", self.stopping),
         ] {
             if let Some(v) = v {
                 if !(v.is_finite() && v >= 0.0) {
@@ -154,6 +166,9 @@ pub struct Figures {
     /// The kinetic energy after the last step observed against its start, as a share of
     /// the start (0 when the start had none).
     pub energy_change: f64,
+    /// The worst stopping distance's error after the last step observed, as a share of the
+    /// distance Coulomb friction gives (0 when no body slides as built).
+    pub stopping: f64,
     /// A position or velocity stopped being a finite number.
     pub non_finite: bool,
 }
@@ -180,7 +195,19 @@ pub struct Monitor {
     start_energy: f64,
     /// Steps in the run's last second, from the world's step.
     final_window: u64,
+    /// The bodies built sliding on a support: index among the dynamic bodies, the
+    /// direction of their start velocity and the distance Coulomb friction stops them in.
+    sliders: Vec<Slider>,
     figures: Figures,
+}
+
+/// A body built sliding on a support, and where friction should stop it.
+#[derive(Clone, Copy, Debug)]
+struct Slider {
+    /// Its index among the monitor's dynamic bodies.
+    k: usize,
+    dir: DVec2,
+    distance: f64,
 }
 
 impl Monitor {
@@ -206,6 +233,11 @@ impl Monitor {
             }
         }
         let energy = world.kinetic_energy();
+        let sliders = if criteria.stopping.is_some() {
+            sliders(world, &dynamic, &resolving)
+        } else {
+            Vec::new()
+        };
         let per_second = (1.0 / world.config.dt).round().max(1.0) as u64;
         Monitor {
             criteria: criteria.clone(),
@@ -218,6 +250,7 @@ impl Monitor {
             energy: EnergyWatch::new(energy),
             start_energy: energy,
             final_window: per_second.min(criteria.steps),
+            sliders,
             figures: Figures::default(),
         }
     }
@@ -279,6 +312,17 @@ impl Monitor {
         } else {
             0.0
         };
+        f.stopping = 0.0;
+        for s in &self.sliders {
+            let (start, _) = self.built[s.k];
+            let pos = self.bodies[self.dynamic[s.k] as usize].pos;
+            let travel = (pos - start).dot(s.dir);
+            // A non-finite place fails through `non_finite`.
+            let error = ((travel - s.distance) / s.distance).abs();
+            if error.is_finite() {
+                f.stopping = f.stopping.max(error);
+            }
+        }
         // The overlap costs a pass over the bodies: every step where it is judged over the
         // run, from the last stated step on where only its end is.
         let at_end = self.figures.steps >= self.criteria.steps;
@@ -319,6 +363,7 @@ impl Monitor {
         judge("final_speed", f.final_speed, c.final_speed);
         judge("energy_rise", f.energy_rise, c.energy_rise);
         judge("energy_change", f.energy_change, c.energy_change);
+        judge("stopping", f.stopping, c.stopping);
         out
     }
 
@@ -418,6 +463,51 @@ impl EnergyWatch {
         self.low = self.low.min(energy);
         self.worst
     }
+}
+
+/// The dynamic bodies (`dynamic`, the world's indices) built moving across their gravity
+/// while resting on a body they resolve against: touching it (within a millionth of the
+/// smaller's size) on its side against gravity. Each slides `v^2 / (2 mu g)` before it
+/// stops, `mu` the pair's friction as the impulse solver mixes it.
+fn sliders(world: &World, dynamic: &[u32], resolving: &[(GroupId, GroupId)]) -> Vec<Slider> {
+    let bodies = world.bodies();
+    let config = &world.config;
+    let mut out = Vec::new();
+    for (k, &i) in dynamic.iter().enumerate() {
+        let b = &bodies[i as usize];
+        let g = crate::dynamics::integrate::acceleration_under(
+            b,
+            config.gravity,
+            config.mass_scaled_acceleration,
+        );
+        let Some(down) = g.try_normalize() else {
+            continue;
+        };
+        let across = b.vel - down * b.vel.dot(down);
+        let Some(dir) = across.try_normalize() else {
+            continue;
+        };
+        let support = bodies.iter().enumerate().find(|&(j, s)| {
+            if j == i as usize || !resolving.contains(&(b.group, s.group)) {
+                return false;
+            }
+            // The normal from the support to the body points against gravity.
+            let (gap, normal) = separation(&s.shape, s.pos, &b.shape, b.pos);
+            gap.abs() <= 1e-6 * smaller(&s.shape, &b.shape) && normal.dot(-down) > 0.999
+        });
+        let Some((_, support)) = support else {
+            continue;
+        };
+        let mu = (b.friction * support.friction).sqrt();
+        if mu > 0.0 {
+            out.push(Slider {
+                k,
+                dir,
+                distance: across.length_squared() / (2.0 * mu * g.length()),
+            });
+        }
+    }
+    out
 }
 
 fn smaller(a: &Shape, b: &Shape) -> f64 {
@@ -590,6 +680,7 @@ mod tests {
                 final_speed: None,
                 energy_rise: None,
                 energy_change: None,
+                stopping: None,
             }
         }
     }

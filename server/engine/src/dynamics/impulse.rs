@@ -123,6 +123,10 @@ pub struct ImpulseParams {
     /// End each sub-step's passes with the support sweep against this direction (unit,
     /// against gravity): see [`support`]. None: no sweep.
     pub support: Option<DVec2>,
+    /// Move a body sliding under friction on what holds it up by its mean velocity over
+    /// the sub-step, up being this direction (unit, against gravity): see
+    /// [`passes::slide`]. None: by its velocity at the end.
+    pub exact_sliding: Option<DVec2>,
 }
 
 /// One body as the solver streams it.
@@ -272,6 +276,12 @@ pub struct SolverBuffers {
     /// When in the sub-step each body last collided (the collision stage's).
     #[serde(skip)]
     met: Vec<f64>,
+    /// Each body's velocity at the start of the sub-step, and how far exact sliding moves
+    /// it (exact sliding only).
+    #[serde(skip)]
+    before: Vec<DVec2>,
+    #[serde(skip)]
+    moved: Vec<DVec2>,
     /// The frame's supporting contacts, by the body they hold up, lowest first (see
     /// [`support`]).
     #[serde(skip)]
@@ -434,6 +444,8 @@ pub fn solve_frame(
             slotted,
             met,
             supports,
+            before,
+            moved,
             ..
         } = &mut *buffers;
         if let Some(up) = params.rest_load {
@@ -449,6 +461,10 @@ pub fn solve_frame(
         let converged = CONVERGED_CHANGE * found.smallest;
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
+            if params.exact_sliding.is_some() {
+                before.clear();
+                before.extend(sb.iter().map(|s| s.vel));
+            }
             passes::integrate_velocities(sb, gain, h);
             clock.lap(times.as_mut().map(|t| &mut t.integrate_velocities));
             if params.warm_starting || params.rest_load.is_some() || step > 0 {
@@ -479,6 +495,9 @@ pub fn solve_frame(
                     .split_impulses
                     .then_some((bias.push.rate, bias.push_fixed.rate));
                 supports.sweep(sb, up, h, push);
+            }
+            if let Some(up) = params.exact_sliding {
+                passes::slide(sb, before, moved, buckets, up);
             }
             clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());

@@ -461,6 +461,10 @@ impl World {
                 .shock_propagation
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
+            exact_sliding: config
+                .exact_sliding
+                .then(|| (-config.gravity).try_normalize())
+                .flatten(),
         };
         // A profiled world times the solver's stages too (summed over the frame's calls).
         if self.profiling {

@@ -7,6 +7,7 @@ use glam::DVec2;
 
 use super::blocks::{self, Bodies};
 use super::load::SUPPORT_COS;
+use super::support::SWEEP_COS;
 use super::team::Team;
 use super::{Bias, Biases, Contact, ImpulseParams, ImpulseReport, Pair, SolverBody};
 use crate::dynamics::body::Body;
@@ -86,6 +87,63 @@ pub(super) fn solve(
             }
             return;
         }
+    }
+}
+
+/// Exact sliding, after the passes: a body that friction slows on what holds it up (a
+/// contact within [`SWEEP_COS`] of `up`, against gravity) moves by its mean velocity over
+/// the sub-step rather than by the velocity at its end. Symplectic Euler moves it by the
+/// velocity friction left it, so a body sliding to rest under friction loses `a h^2 / 2`
+/// of its path each sub-step (`a` the deceleration) and stops `v h / 2` short of
+/// `v^2 / (2 a)`; friction that stops it within the sub-step moved it by nothing, where it
+/// slid `u^2 / (2 a)` first.
+///
+/// Each contact gives its pair back a share of its friction impulse `jt` through the
+/// pseudo-velocities (positions only): `-jt / 2` times the share of the sub-step the pair
+/// slid, `min(1, |jt| / (mu jn))` (friction at its full force takes that long to give
+/// `jt`). No body then moves further than the mean of its own velocities at the start
+/// (`before`) and the end takes it beyond the end's (`moved` sums each body's share,
+/// reused): a body that friction holds at rest (a pile, or a plank the ground holds while
+/// a box slides along it) keeps its velocity and moves by it alone.
+///
+/// Friction against a wall, or between bodies that strike each other side on, is left
+/// alone: its impulse is a blow's, not a steady force over the sub-step (moved as if it
+/// were, the boxes a heavy body sweeps aside were driven into their neighbours).
+pub(super) fn slide(
+    sb: &mut [SolverBody],
+    before: &[DVec2],
+    moved: &mut Vec<DVec2>,
+    buckets: &mut [Vec<Contact>],
+    up: DVec2,
+) {
+    moved.clear();
+    moved.resize(sb.len(), DVec2::ZERO);
+    for c in buckets.iter_mut().flatten() {
+        let jt = c.tangent_impulse;
+        let most = c.friction * c.normal_impulse;
+        if jt == 0.0 || most <= 0.0 || c.normal.dot(up).abs() <= SWEEP_COS {
+            continue;
+        }
+        let (a, b) = (c.a as usize, c.b as usize);
+        let t = DVec2::new(-c.normal.y, c.normal.x);
+        let slid = (jt.abs() / most).min(1.0);
+        let p = t * (-0.5 * jt * slid);
+        moved[a] -= p * sb[a].inv_mass;
+        moved[b] += p * sb[b].inv_mass;
+        // A pair friction stopped: what stopped it does not push again (warm-started, it
+        // threw a box and the plank under it back the way the box came).
+        let u = (before[b] - before[a]).dot(t).abs();
+        if slid < 1.0 && u * c.mass > 0.1 * jt.abs() {
+            c.tangent_impulse = 0.0;
+        }
+    }
+    for ((s, &m), &v0) in sb.iter_mut().zip(moved.iter()).zip(before) {
+        let Some(dir) = m.try_normalize() else {
+            continue;
+        };
+        // The mean velocity's lead over the end's, along the share.
+        let most = ((v0 - s.vel) * 0.5).dot(dir);
+        s.pseudo += dir * most.clamp(0.0, m.length());
     }
 }
 

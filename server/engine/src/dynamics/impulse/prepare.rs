@@ -40,6 +40,8 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         cut_scratch,
         pushed: _,
         met: _,
+        before: _,
+        moved: _,
         supports: _,
         crew: _,
         last_contacts: _,

@@ -34,7 +34,7 @@ use crate::dynamics::body::Body;
 /// Contacts whose normal is within about 72 degrees of the vertical are swept: a grain
 /// wedged steeply between others under a heavy box is held too (the heavy-on-light family
 /// holds 78 seeds of 100 at this, 72 at the resting load's 45 degrees, 76 at 84).
-const SWEEP_COS: f64 = 0.3;
+pub(super) const SWEEP_COS: f64 = 0.3;
 
 /// What the sweep reads of one supporting contact, laid out in the order it visits them
 /// (one stream instead of a look into the buckets for each).

@@ -50,6 +50,7 @@ fn params() -> ImpulseParams {
         threads: 1,
         rest_load: None,
         support: None,
+        exact_sliding: None,
     }
 }
 
