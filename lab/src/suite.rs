@@ -12,7 +12,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use ricochet_engine::criteria::{Judgement, Monitor};
+use ricochet_engine::criteria::{Criteria, Judgement, Monitor};
 use ricochet_engine::scene;
 
 use super::percentile;
@@ -142,6 +142,15 @@ pub struct Targeted {
 /// Picks a setting for `path` under `target` (measured afresh, as a server would at
 /// start-up without a cache), then runs the scene under it against its criteria.
 pub fn under_target(path: &Path, target: f64) -> Result<Targeted> {
+    under_target_judged(path, target, |c| c)
+}
+
+/// [`under_target`], the run judged by `judged` of the scene's criteria.
+pub fn under_target_judged(
+    path: &Path,
+    target: f64,
+    judged: impl Fn(Criteria) -> Criteria,
+) -> Result<Targeted> {
     use crate::scene_tradeoff::Subject;
     let subject = Subject::read(path, ricochet_server::accuracy::MEASURE_STEPS, Vec::new())?;
     let started = Instant::now();
@@ -153,7 +162,7 @@ pub fn under_target(path: &Path, target: f64) -> Result<Targeted> {
         .iter()
         .map(String::as_str)
         .collect();
-    let row = measure(path, &format!("accuracy = {target}"), &overrides)?;
+    let row = measure_judged(path, &format!("accuracy = {target}"), &overrides, judged)?;
     Ok(Targeted {
         measure_s,
         pick,
@@ -245,12 +254,24 @@ pub fn targeted_markdown(runs: &[Targeted]) -> String {
 
 /// Runs `path` under `overrides` for the steps its criteria ask, timing every step.
 pub fn measure(path: &Path, label: &str, overrides: &[&str]) -> Result<Row> {
+    measure_judged(path, label, overrides, |c| c)
+}
+
+/// [`measure`], the run judged by `judged` of the scene's criteria (tighter limits, say).
+pub fn measure_judged(
+    path: &Path,
+    label: &str,
+    overrides: &[&str],
+    judged: impl Fn(Criteria) -> Criteria,
+) -> Result<Row> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let overrides: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     let mut world = scene::parse(&text, path, &overrides)?;
-    let criteria = scene::criteria(&text, path)?
-        .with_context(|| format!("{} states no [criteria]", path.display()))?;
+    let criteria = judged(
+        scene::criteria(&text, path)?
+            .with_context(|| format!("{} states no [criteria]", path.display()))?,
+    );
     let mut monitor = Monitor::new(&world, &criteria);
     let mut times = Vec::with_capacity(criteria.steps as usize);
     for _ in 0..criteria.steps {
