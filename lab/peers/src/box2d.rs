@@ -1,5 +1,6 @@
 //! The scene in Box2D v3 (boxdd's bundled source): 4 sub-steps a step, one worker (no task
-//! system), sleeping off, continuous collision as Box2D's default, rotation locked both by
+//! system), sleeping as Ricochet's setting of the scene (its own default tolerances: 0.05
+//! units/s for 0.5 s, as Ricochet's), continuous collision as Box2D's default, rotation locked both by
 //! the motion lock and by a zero rotational inertia, restitution mixed as Ricochet's
 //! minimum.
 
@@ -54,7 +55,7 @@ impl Box2dScene {
         let def = foundation
             .world_builder()
             .gravity(Vec2::new(config.gravity.x as f32, config.gravity.y as f32))
-            .enable_sleep(false)
+            .enable_sleep(config.sleeping)
             .enable_continuous(true)
             .maximum_linear_speed(MAX_LINEAR_SPEED)
             .worker_count(WorkerCount::new(1)?)
@@ -86,7 +87,7 @@ impl Box2dScene {
                     body.pos.y as WorldScalar,
                 ))
                 .linear_velocity(Vec2::new(body.vel.x as f32, body.vel.y as f32))
-                .enable_sleep(false)
+                .enable_sleep(config.sleeping)
                 .motion_locks(MotionLocks::new(false, false, true))
                 .build()
                 .context("a Box2D body definition")?;

@@ -1,4 +1,5 @@
-//! The scene in rapier2d (f32, one thread): 4 solver iterations, sleeping off, rotation
+//! The scene in rapier2d (f32, one thread): 4 solver iterations, sleeping as Ricochet's
+//! setting of the scene (rapier's own thresholds), rotation
 //! locked, masses set on the colliders, friction combined as the geometric mean and
 //! restitution as the minimum (Ricochet's rules), CCD on every dynamic body (Box2D's
 //! default continuous collision against static bodies; Ricochet needs none at the suite's
@@ -47,7 +48,7 @@ impl RapierScene {
             let rigid = if dynamic {
                 RigidBodyBuilder::dynamic()
                     .lock_rotations()
-                    .can_sleep(false)
+                    .can_sleep(config.sleeping)
                     .ccd_enabled(true)
                     .linvel(vector(body.vel))
             } else {

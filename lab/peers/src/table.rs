@@ -120,13 +120,13 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
          collision {}, sleeping {}, {} thread; f64.\n\
          - **Box2D v3** {} (the bundled C source of boxdd {}, compiled by cc with boxdd's \
          `simd-avx2`, AVX2): {} sub-steps a step, one worker and no task system, sleeping \
-         off (world and bodies), continuous collision on (its default: dynamic against \
+         as Ricochet's (world and bodies; its own tolerances, 0.05 units/s for 0.5 s), continuous collision on (its default: dynamic against \
          static), contact events off, speed cap raised from 400 to {} units/s (the bullets \
          fly at 600); {precision}. Every dynamic body has its rotation locked by the \
          motion lock and by mass data of rotational inertia 0 (mass 1/inv_mass, centre 0): \
          the lock alone only zeroes the angular velocity and stacks go soft.\n\
          - **rapier2d** {} (f32, one thread, no `parallel` feature): {} solver iterations, \
-         bodies that cannot sleep, rotation locked, CCD on every dynamic body (as Box2D's \
+         sleeping as Ricochet's (its own thresholds), rotation locked, CCD on every dynamic body (as Box2D's \
          continuous collision; the bullets would cross the wall without it), speed cap \
          off (its default is 400 units/s).\n\n\
          Bodies: Ricochet's rectangles as boxes of the same half extents, circles of the \

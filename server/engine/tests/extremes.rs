@@ -329,7 +329,8 @@ fn sleeps_and_wakes(overrides: &[&str]) {
 
 #[test]
 fn without_sleeping_nothing_sleeps() {
-    let (w, _) = run(load("stack-20.toml", STABLE), 600);
+    let settings: Vec<&str> = STABLE.iter().copied().chain(["sleeping=false"]).collect();
+    let (w, _) = run(load("stack-20.toml", &settings), 600);
     assert_eq!(w.stats().sleeping, 0);
     assert!(w.bodies().iter().all(|b| b.asleep.is_none()));
 }

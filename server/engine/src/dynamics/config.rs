@@ -204,7 +204,8 @@ pub struct WorldConfig {
     pub ccd: bool,
     /// Let bodies at rest sleep: an island of touching dynamic bodies that all moved slower
     /// than `sleep_speed` for `sleep_delay` seconds stops being integrated and is seen as
-    /// static by the solvers until something moving touches it.
+    /// static by the solvers until something moving touches it. On by default, off under
+    /// the chapter's relaxation.
     pub sleeping: bool,
     /// Speed below which a body counts as at rest (units/s).
     pub sleep_speed: f64,
@@ -227,7 +228,8 @@ pub struct WorldConfig {
 
 impl WorldConfig {
     /// The chapter's solver: its relaxation, one step at a time, candidates by sweep (the
-    /// chapter tests every pair; the sweep finds the same contacts in the same order).
+    /// chapter tests every pair; the sweep finds the same contacts in the same order),
+    /// every body stepped (no sleeping).
     /// What a scene gets when its `[world]` names `solver = "relaxation"`: the fields it
     /// names over these.
     pub fn chapter() -> Self {
@@ -235,6 +237,7 @@ impl WorldConfig {
             solver: Solver::Relaxation,
             broad_phase: super::broad_phase::BroadPhase::Sweep,
             substeps: 1,
+            sleeping: false,
             ..WorldConfig::default()
         }
     }
@@ -243,7 +246,8 @@ impl WorldConfig {
 /// The default holds every kind of scene of the suite (`assets/scenes/suite/`, each
 /// against its criteria; docs/engine.md says why each part is there): the impulse solver
 /// at 2 sub-steps of 2 passes, pushing overlaps out by split impulses, its first frame
-/// started from the resting load, candidates from the persistent grid. The world's facts
+/// started from the resting load, candidates from the persistent grid, islands at rest
+/// asleep. The world's facts
 /// (gravity, time step, bounds, the chapter's relaxation count and correction rate) are
 /// the chapter's.
 impl Default for WorldConfig {
@@ -279,7 +283,7 @@ impl Default for WorldConfig {
             contact_damping: 10.0,
             split_impulses: true,
             ccd: false,
-            sleeping: false,
+            sleeping: true,
             sleep_speed: 0.05,
             sleep_delay: 0.5,
             threads: 1,

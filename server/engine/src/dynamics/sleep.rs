@@ -1,4 +1,5 @@
-//! Sleeping of bodies at rest (`sleeping = true`; off by default).
+//! Sleeping of bodies at rest (`sleeping`; on by default, off under the chapter's
+//! relaxation).
 //!
 //! After each step, touching dynamic bodies are joined into islands. An island whose
 //! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds goes to sleep:

@@ -146,10 +146,12 @@ pub fn default_candidates(f: &Features) -> Vec<Candidate> {
             overrides: with(&["ccd=true"]),
         });
     }
+    // Sleeping is the default's: where islands could sleep, the same setting awake (what a
+    // pile that has come to rest costs if it is stepped on).
     if f.dynamic >= 64 {
         out.push(Candidate {
-            name: "impulses 2 x 2, sleeping".into(),
-            overrides: with(&["sleeping=true"]),
+            name: "impulses 2 x 2, awake".into(),
+            overrides: with(&["sleeping=false"]),
         });
     }
     out
