@@ -40,6 +40,10 @@ struct Args {
     /// ../../assets/scenes/suite from lab/peers/].
     #[arg(long, value_name = "DIR")]
     scenes: Option<PathBuf>,
+    /// Runs Ricochet under these `[world]` overrides, NAME=VALUE (repeatable); Box2D and
+    /// rapier follow `sleeping` (e.g. --set sleeping=false: every engine awake).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    set: Vec<String>,
 }
 
 fn main() -> Result<()> {
@@ -54,7 +58,7 @@ fn main() -> Result<()> {
     let files = scene::scene_files(&dir, args.only.as_deref())?;
     let mut results = Vec::new();
     for path in &files {
-        let scene = Scene::load(path)?;
+        let scene = Scene::load(path, &args.set)?;
         let outcomes = run::rounds(&scene, rounds)?;
         results.push(SceneResult::new(&scene, outcomes));
     }
@@ -66,7 +70,16 @@ fn main() -> Result<()> {
         box2d_version: box2d::version()?,
         boxdd_version: locked_version("boxdd")?,
         rapier_version: locked_version("rapier2d")?,
-        ricochet: WorldConfig::default(),
+        ricochet: {
+            let mut config = WorldConfig::default();
+            for o in &args.set {
+                config
+                    .set_from_str(o)
+                    .with_context(|| format!("--set {o}"))?;
+            }
+            config
+        },
+        overrides: args.set.clone(),
         limits,
     };
     table::write(&args.out, &setup, &results)?;

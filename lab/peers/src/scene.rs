@@ -15,6 +15,9 @@ pub struct Scene {
     pub name: String,
     pub path: PathBuf,
     text: String,
+    /// `[world]` overrides Ricochet parses the scene under (`--set`); a peer follows those
+    /// it has a counterpart of (sleeping).
+    overrides: Vec<String>,
     pub criteria: Criteria,
     /// The scene as parsed once: what the peers translate and the monitor is built from.
     pub world: World,
@@ -34,10 +37,10 @@ impl Scene {
     /// Reads, parses and checks the scene at `path`: it must state criteria, accelerate
     /// bodies classically (`mass_scaled_acceleration = false`), give no body a gravity of
     /// its own and use at most 32 groups.
-    pub fn load(path: &Path) -> Result<Scene> {
+    pub fn load(path: &Path, overrides: &[String]) -> Result<Scene> {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("reading the scene {}", path.display()))?;
-        let world = ricochet_engine::scene::parse(&text, path, &[])
+        let world = ricochet_engine::scene::parse(&text, path, overrides)
             .with_context(|| format!("parsing the scene {}", path.display()))?;
         let criteria = ricochet_engine::scene::criteria(&text, path)
             .with_context(|| format!("reading the criteria of {}", path.display()))?
@@ -64,6 +67,7 @@ impl Scene {
             name,
             path: path.to_path_buf(),
             text,
+            overrides: overrides.to_vec(),
             criteria,
             world,
             filters,
@@ -72,7 +76,7 @@ impl Scene {
 
     /// A fresh Ricochet world of the scene, before its first step.
     pub fn fresh_world(&self) -> Result<World> {
-        ricochet_engine::scene::parse(&self.text, &self.path, &[])
+        ricochet_engine::scene::parse(&self.text, &self.path, &self.overrides)
             .with_context(|| format!("parsing the scene {}", self.path.display()))
     }
 

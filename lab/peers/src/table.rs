@@ -34,8 +34,11 @@ pub struct Setup {
     pub box2d_version: String,
     pub boxdd_version: String,
     pub rapier_version: String,
-    /// Ricochet's settings, as the suite's scenes get them.
+    /// Ricochet's settings, as the suite's scenes get them (the default under
+    /// `overrides`).
     pub ricochet: WorldConfig,
+    /// The `--set` overrides Ricochet ran under (none: its default).
+    pub overrides: Vec<String>,
     /// This machine's bandwidth and peak arithmetic, measured before the scenes ran.
     pub limits: crate::limit::Machine,
 }
@@ -115,7 +118,7 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
          Machine: {}. Every engine on one thread; Ricochet on two as well (the row \
          \"Ricochet, 2 threads\": the same settings with `threads = 2`).\n\n\
          ## Engines\n\n\
-         - **Ricochet**: the default (`WorldConfig::default`): solver {:?}, {} sub-steps of \
+         - **Ricochet**: the default (`WorldConfig::default`){}: solver {:?}, {} sub-steps of \
          {} passes, warm starting {}, resting load {}, split impulses {}, continuous \
          collision {}, sleeping {}, {} thread; f64.\n\
          - **Box2D v3** {} (the bundled C source of boxdd {}, compiled by cc with boxdd's \
@@ -148,6 +151,11 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
         ctx.scenes,
         ctx.rounds,
         ctx.machine,
+        if ctx.overrides.is_empty() {
+            String::new()
+        } else {
+            format!(" under `{}`", ctx.overrides.join(" "))
+        },
         c.solver,
         c.substeps,
         c.impulse_iterations,

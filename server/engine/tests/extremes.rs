@@ -302,6 +302,12 @@ fn sleeps_and_wakes(overrides: &[&str]) {
     w.step_n(300);
     let still: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
     assert_eq!(asleep, still, "sleeping bodies do not move at all");
+    // Asleep whole, the world runs neither the broad phase nor the rigid stage.
+    w.set_profiling(true);
+    w.step();
+    assert_eq!(w.profile().broad_phase, std::time::Duration::ZERO);
+    assert_eq!(w.stats().sleeping, 20);
+    w.set_profiling(false);
     // A box dropped on top wakes the stack, which then settles and sleeps again.
     w.add_body(ricochet_engine::dynamics::BodyDef {
         id: "falling".into(),

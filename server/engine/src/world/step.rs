@@ -86,18 +86,32 @@ impl World {
         let mut stats = StepStats::default();
         let energy_before = self.last_energy.unwrap_or_else(|| self.mechanical_energy());
         self.freeze_sleepers();
+        // Every body asleep and no rule steering any: nothing rigid can move this step, so
+        // neither the broad phase, the rigid stage nor the islands are computed (an action
+        // that moves a body or changes the world wakes them all first; a spawned body is
+        // awake).
+        let dormant = self.dormant();
         took.sleep = laps.lap_if(self.config.sleeping);
         self.game_rules(HookPoint::BeforeMotion);
         took.hooks = laps.lap_if(!self.behaving.is_empty());
-        self.rigid_broad_phase();
-        took.broad_phase = laps.lap_if(self.config.solver == Solver::Impulses);
-        self.rigid_stage(&mut stats);
+        if !dormant {
+            self.rigid_broad_phase();
+        }
+        took.broad_phase = laps.lap_if(self.config.solver == Solver::Impulses && !dormant);
+        if !dormant {
+            self.rigid_stage(&mut stats);
+        }
         took.rigid = laps.lap();
         self.move_particles();
         took.particles_move = laps.lap_if(!self.particles.is_empty() || !self.emitters.is_empty());
         stats.particle_contacts = self.particle_interactions();
         took.particle_interactions = laps.lap_if(!self.particles.is_empty());
-        stats.sleeping = self.update_sleep();
+        stats.sleeping = if dormant {
+            sleep::thaw(&mut self.bodies, &self.movers);
+            self.sleeping
+        } else {
+            self.update_sleep()
+        };
         took.sleep += laps.lap_if(self.config.sleeping);
         self.energy_stage(&mut stats, energy_before);
         took.energy = laps.lap();
@@ -121,6 +135,18 @@ impl World {
         (stats.kinetic_energy, stats.energy) = self.energies();
         stats.energy_change = stats.energy - energy_before;
         self.last_energy = Some(stats.energy);
+    }
+
+    /// Whether the world rests whole: sleeping on, every dynamic body asleep, no body
+    /// steered by a rule.
+    fn dormant(&self) -> bool {
+        self.config.sleeping
+            && self.behaving.is_empty()
+            && !self.movers.is_empty()
+            && self
+                .movers
+                .iter()
+                .all(|&i| self.bodies[i as usize].asleep.is_some())
     }
 
     /// Before the step: last step's collided flags cleared; with sleeping on, sleepers
