@@ -431,6 +431,9 @@ fn a_set_solver_knob_shows_in_the_next_frames_figures() {
             "substeps=1",
             "--set",
             "impulse_iterations=2",
+            // Awake: a pyramid asleep whole runs no passes at all.
+            "--set",
+            "sleeping=false",
         ],
     );
     let client = server.client();
