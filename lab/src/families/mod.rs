@@ -11,8 +11,10 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 mod draw;
+mod motion;
 
 use draw::*;
+use motion::*;
 
 /// A family of scenes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

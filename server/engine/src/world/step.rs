@@ -143,6 +143,9 @@ impl World {
         self.config.sleeping
             && self.behaving.is_empty()
             && !self.movers.is_empty()
+            // The count the last step left (0 after anything woke the world): the bodies
+            // are read only when it says every one may sleep.
+            && self.sleeping as usize >= self.movers.len()
             && self
                 .movers
                 .iter()
