@@ -190,6 +190,7 @@ pub const SETTING_NAMES: &[&str] = &[
     "start_frames",
     "rest_load",
     "shock_propagation",
+    "impact_propagation",
     "exact_sliding",
     "contact_hertz",
     "contact_damping",

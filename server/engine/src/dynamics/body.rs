@@ -165,6 +165,12 @@ pub struct Body {
     pub key: BodyKey,
     /// Seconds the body has moved slower than the world's `sleep_speed`.
     pub rest_time: f64,
+    /// The body's place averaged over the world's `sleep_delay` since its rest began: a
+    /// body at rest stays within `sleep_speed * sleep_delay` of it (push-out that only
+    /// shuffles a body in place, as in a container fuller than it can hold, does not
+    /// keep it awake).
+    #[serde(default)]
+    pub rest_anchor: DVec2,
     /// Set while the body sleeps (see [`crate::dynamics::sleep`]).
     pub asleep: Option<Sleeper>,
 }
@@ -204,6 +210,7 @@ impl Body {
             group: 0,
             key: BodyKey(0),
             rest_time: 0.0,
+            rest_anchor: pos,
             asleep: None,
         }
     }

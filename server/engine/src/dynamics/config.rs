@@ -181,6 +181,11 @@ pub struct WorldConfig {
     /// a pile's approach does not sink it. A pile formed at run time (a column dropped
     /// box by box, a rain, a heavy box on a bed) then holds however deep.
     pub shock_propagation: bool,
+    /// Without gravity, the impulse solver ends each sub-step's passes by moving the
+    /// bodies a heavy body (100 times a body it strikes, or more) drives into each other
+    /// on as one, along their momentum: the passes carry its push down a file of light
+    /// bodies one contact a pass, halving it at each, and the file runs into itself.
+    pub impact_propagation: bool,
     /// Under gravity, the impulse solver moves a body that friction slows on what holds it
     /// up by its mean velocity over the sub-step instead of the velocity at its end, and
     /// one that friction stops within the sub-step as far as it slides before it stops: a
@@ -278,6 +283,7 @@ impl Default for WorldConfig {
             start_frames: 20,
             rest_load: true,
             shock_propagation: true,
+            impact_propagation: true,
             exact_sliding: true,
             contact_hertz: 0.0,
             contact_damping: 10.0,

@@ -127,6 +127,8 @@ pub struct ImpulseParams {
     /// the sub-step, up being this direction (unit, against gravity): see
     /// [`passes::slide`]. None: by its velocity at the end.
     pub exact_sliding: Option<DVec2>,
+    /// End each sub-step's passes with the impact sweep: see [`impact`].
+    pub impact_propagation: bool,
 }
 
 /// One body as the solver streams it.
@@ -286,6 +288,8 @@ pub struct SolverBuffers {
     /// [`support`]).
     #[serde(skip)]
     supports: support::Sweep,
+    #[serde(skip)]
+    impacts: impact::Sweep,
     /// Where the frame's time went, stage by stage, when the world is profiled (`None`:
     /// no clock is read).
     #[serde(skip)]
@@ -444,6 +448,7 @@ pub fn solve_frame(
             slotted,
             met,
             supports,
+            impacts,
             before,
             moved,
             ..
@@ -490,6 +495,9 @@ pub fn solve_frame(
                 gain,
                 &mut report,
             );
+            if params.impact_propagation {
+                impacts.sweep(sb, buckets, gain, h);
+            }
             if let Some(up) = params.support {
                 let push = params
                     .split_impulses
@@ -524,6 +532,7 @@ pub fn solve_frame(
 }
 
 mod blocks;
+mod impact;
 mod load;
 mod passes;
 mod prepare;

@@ -104,6 +104,7 @@ settings! {
     StartFrames(u32) => start_frames,
     RestLoad(bool) => rest_load,
     ShockPropagation(bool) => shock_propagation,
+    ImpactPropagation(bool) => impact_propagation,
     ExactSliding(bool) => exact_sliding,
     ContactHertz(f64) => contact_hertz,
     ContactDamping(f64) => contact_damping,

@@ -2,7 +2,8 @@
 //! relaxation).
 //!
 //! After each step, touching dynamic bodies are joined into islands. An island whose
-//! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds goes to sleep:
+//! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds, none straying
+//! further than that speed allows from its recent places, goes to sleep:
 //! velocities zeroed, no integration, and the solvers see its bodies as static (their
 //! inverse mass is set aside during a step). An island with a moving body in it (a body
 //! that hit a sleeper joins its island) wakes whole. Bodies driven by a behaviour (hero,
@@ -53,8 +54,9 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
 /// Updates rest times and puts islands to sleep or wakes them. `pairs` are candidate
 /// pairs of the step (body indices); those touching join islands; `may_sleep` says which
 /// bodies may rest at all (the demo's steered bodies never do); `start` is each mover's
-/// place at the start of the step (a body that moved further than `speed` allows is not
-/// at rest). Returns how many bodies sleep now.
+/// place at the start of the step (a body's rest begins there; one that strays from its
+/// recent places further than `speed` allows over `delay` is not at rest). Returns how many bodies
+/// sleep now.
 #[allow(clippy::too_many_arguments)]
 pub fn update(
     bodies: &mut [Body],
@@ -71,12 +73,21 @@ pub fn update(
         if b.asleep.is_some() {
             continue;
         }
-        // At rest: slow, and not moved further than that speed allows over the step
-        // (split impulses move positions without velocity).
-        let still = match start.get(k) {
-            Some(&(j, p)) if j == i => (b.pos - p).length() < speed * dt,
-            _ => false,
+        // At rest: slow, and near where it has been lately. Split impulses move
+        // positions without velocity: the anchor follows the body's place, averaged over
+        // `delay`, so a body they push on steadily faster than `speed` draws away from
+        // it, and one they only shuffle in place (a crowd fuller than its container can
+        // hold) stays near.
+        let from = match start.get(k) {
+            Some(&(j, p)) if j == i => Some(p),
+            _ => None,
         };
+        let reach = speed * delay.max(dt);
+        if b.rest_time == 0.0 {
+            b.rest_anchor = from.unwrap_or(b.pos);
+        }
+        b.rest_anchor += (b.pos - b.rest_anchor) * (dt / delay.max(dt));
+        let still = from.is_some() && (b.pos - b.rest_anchor).length() < reach;
         b.rest_time = if may_sleep(i as usize) && b.vel.length() < speed && still {
             b.rest_time + dt
         } else {

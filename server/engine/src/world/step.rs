@@ -490,6 +490,7 @@ impl World {
                 .shock_propagation
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
+            impact_propagation: config.impact_propagation,
             exact_sliding: config
                 .exact_sliding
                 .then(|| (-config.gravity).try_normalize())

@@ -130,6 +130,7 @@ impl World {
             group,
             key,
             rest_time: 0.0,
+            rest_anchor: def.pos,
             asleep: None,
         });
         self.groups[group as usize].members.push(index);

@@ -43,6 +43,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         before: _,
         moved: _,
         supports: _,
+        impacts: _,
         crew: _,
         last_contacts: _,
         times: _,

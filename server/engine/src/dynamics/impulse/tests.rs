@@ -51,6 +51,7 @@ fn params() -> ImpulseParams {
         rest_load: None,
         support: None,
         exact_sliding: None,
+        impact_propagation: false,
     }
 }
 
