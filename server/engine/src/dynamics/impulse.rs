@@ -284,6 +284,12 @@ pub struct SolverBuffers {
     before: Vec<DVec2>,
     #[serde(skip)]
     moved: Vec<DVec2>,
+    /// Each mover's pseudo-velocity before the sub-step's passes, and the most they may
+    /// push it out (split impulses only).
+    #[serde(skip)]
+    unpushed: Vec<DVec2>,
+    #[serde(skip)]
+    push_cap: Vec<f64>,
     /// The frame's supporting contacts, by the body they hold up, lowest first (see
     /// [`support`]).
     #[serde(skip)]
@@ -449,6 +455,8 @@ pub fn solve_frame(
             met,
             supports,
             impacts,
+            unpushed,
+            push_cap,
             before,
             moved,
             ..
@@ -482,6 +490,16 @@ pub fn solve_frame(
                 passes::collisions(sb, gain, buckets, met, h, most, flight, &mut report);
             }
             clock.lap(times.as_mut().map(|t| &mut t.restitution));
+            if params.split_impulses {
+                unpushed.clear();
+                unpushed.extend(sb[..movers.len()].iter().map(|b| b.pseudo));
+                if step == 0 {
+                    push_cap.clear();
+                    push_cap.extend(movers.iter().map(|&i| {
+                        MAX_PUSH_OUT * 2.0 * bodies[i as usize].shape.half_extents().min_element()
+                    }));
+                }
+            }
             passes::solve(
                 team,
                 sb,
@@ -495,6 +513,9 @@ pub fn solve_frame(
                 gain,
                 &mut report,
             );
+            if params.split_impulses {
+                passes::cap_push_out(sb, unpushed, push_cap);
+            }
             if params.impact_propagation {
                 impacts.sweep(sb, buckets, gain, h);
             }

@@ -42,6 +42,8 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         met: _,
         before: _,
         moved: _,
+        unpushed: _,
+        push_cap: _,
         supports: _,
         impacts: _,
         crew: _,
