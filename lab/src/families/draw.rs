@@ -453,7 +453,7 @@ pub(super) fn crowds(rng: &mut ChaCha8Rng, s: &mut Scene) {
 }
 
 pub(super) fn rains(rng: &mut ChaCha8Rng, s: &mut Scene) {
-    let count = rng.random_range(100..=2000);
+    let count = rng.random_range(100..=5000);
     let size = rng.random_range(0.2..=0.6);
     let layers = rng.random_range(5..=50) as f64;
     // A bin as wide as `count / layers` bodies.

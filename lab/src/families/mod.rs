@@ -29,7 +29,7 @@ pub enum Family {
     /// Circles crowded into a closed box without gravity, from 50% to 110% of its area,
     /// its walls a tenth of a body to several bodies thick.
     Crowds,
-    /// 100 to 2000 circles and boxes mixed, dropped into a bin from heights that make 5
+    /// 100 to 5000 circles and boxes mixed, dropped into a bin from heights that make 5
     /// to 50 layers.
     Rains,
     /// A heavy body (mass ratios 10 to 1000) at 10 to 300 u/s into a block of light boxes

@@ -68,9 +68,13 @@ pub fn update(
     speed: f64,
     delay: f64,
 ) -> u64 {
+    // Whether any body sleeps, or has rested long enough to: if none, no island can
+    // sleep or wake, and they are not built.
+    let mut islands_matter = false;
     for (k, &i) in movers.iter().enumerate() {
         let b = &mut bodies[i as usize];
         if b.asleep.is_some() {
+            islands_matter = true;
             continue;
         }
         // At rest: slow, and near where it has been lately. Split impulses move
@@ -93,6 +97,10 @@ pub fn update(
         } else {
             0.0
         };
+        islands_matter |= b.rest_time >= delay;
+    }
+    if !islands_matter {
+        return 0;
     }
     let mut parent: Vec<u32> = (0..bodies.len() as u32).collect();
     for &(i, j) in pairs {

@@ -114,7 +114,22 @@ impl Sweep {
             return;
         }
         let n = sb.len();
-        // The contacts, by body.
+        // The heavy bodies that start clusters, in the order of the contacts (so the bits
+        // depend on nothing else).
+        self.root.clear();
+        self.root.resize(n, NONE);
+        self.order.clear();
+        for c in buckets.iter().flatten() {
+            if let Some(heavy) = heavy_of(c, sb, gain) {
+                if self.root[heavy as usize] == NONE {
+                    self.root[heavy as usize] = heavy;
+                    self.order.push(heavy);
+                }
+            }
+        }
+        // The contacts that may join a cluster, by body: those still approaching
+        // (whichever body the cluster reaches first: the test is the same from either
+        // side), and those a heavy body presses. A crowd at rest adds none.
         self.edges.clear();
         self.start.clear();
         self.start.resize(n + 1, 0);
@@ -125,13 +140,19 @@ impl Sweep {
             } else {
                 0.0
             };
-            self.edges.push(Edge {
+            let edge = Edge {
                 a: c.a,
                 b: c.b,
                 normal: c.normal,
                 apart,
                 pressed: c.normal_impulse > 0.0,
-            });
+            };
+            let by_root = edge.pressed
+                && (self.root[c.a as usize] != NONE || self.root[c.b as usize] != NONE);
+            if !by_root && !edge.approaches(c.a, sb, h) {
+                continue;
+            }
+            self.edges.push(edge);
             self.start[c.a as usize] += 1;
             self.start[c.b as usize] += 1;
         }
@@ -153,19 +174,7 @@ impl Sweep {
         // `start` now holds where each body's contacts end: shifted back by one body.
         self.start.rotate_right(1);
         self.start[0] = 0;
-        // The clusters, breadth first from the heavy bodies in the order of the contacts
-        // (so the bits depend on nothing else).
-        self.root.clear();
-        self.root.resize(n, NONE);
-        self.order.clear();
-        for c in buckets.iter().flatten() {
-            if let Some(heavy) = heavy_of(c, sb, gain) {
-                if self.root[heavy as usize] == NONE {
-                    self.root[heavy as usize] = heavy;
-                    self.order.push(heavy);
-                }
-            }
-        }
+        // The clusters, breadth first from the heavy bodies.
         let mut next = 0;
         while next < self.order.len() {
             let u = self.order[next];
