@@ -51,25 +51,21 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
     i
 }
 
-/// Updates rest times and puts islands to sleep or wakes them. `pairs` are candidate
-/// pairs of the step (body indices); those touching join islands; `may_sleep` says which
-/// bodies may rest at all (the demo's steered bodies never do); `start` is each mover's
-/// place at the start of the step (a body's rest begins there; one that strays from its
-/// recent places further than `speed` allows over `delay` is not at rest). Returns how many bodies
-/// sleep now.
-#[allow(clippy::too_many_arguments)]
-pub fn update(
+/// Updates rest times, before the islands. `may_sleep` says which bodies may rest at all
+/// (the demo's steered bodies never do); `start` is each mover's place at the start of the
+/// step (a body's rest begins there; one that strays from its recent places further than
+/// `speed` allows over `delay` is not at rest). Returns whether islands are needed: a body
+/// sleeps, or has rested long enough to. If not, none can sleep or wake, and the caller
+/// need not find the touching pairs.
+pub fn rest(
     bodies: &mut [Body],
     movers: &[u32],
     may_sleep: impl Fn(usize) -> bool,
-    pairs: &[(u32, u32)],
     start: &[(u32, glam::DVec2)],
     dt: f64,
     speed: f64,
     delay: f64,
-) -> u64 {
-    // Whether any body sleeps, or has rested long enough to: if none, no island can
-    // sleep or wake, and they are not built.
+) -> bool {
     let mut islands_matter = false;
     for (k, &i) in movers.iter().enumerate() {
         let b = &mut bodies[i as usize];
@@ -99,9 +95,13 @@ pub fn update(
         };
         islands_matter |= b.rest_time >= delay;
     }
-    if !islands_matter {
-        return 0;
-    }
+    islands_matter
+}
+
+/// After [`rest`]: joins touching bodies into islands and puts resting islands to sleep
+/// or wakes them. `pairs` are candidate pairs of the step (body indices); those touching
+/// join islands. Returns how many bodies sleep now.
+pub fn islands(bodies: &mut [Body], movers: &[u32], pairs: &[(u32, u32)], delay: f64) -> u64 {
     let mut parent: Vec<u32> = (0..bodies.len() as u32).collect();
     for &(i, j) in pairs {
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);

@@ -185,23 +185,28 @@ impl World {
             sleep::thaw(&mut self.bodies, &self.movers);
         }
         let dt = self.config.dt;
-        // Where the bodies are after the step: islands join bodies touching now.
-        self.broad_phase(dt);
-        let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
         let (speed, delay) = (self.config.sleep_speed, self.config.sleep_delay);
         let infos = &self.infos;
         let may_sleep =
             |i: usize| matches!(infos[i].behavior, Behavior::None | Behavior::DumbMinion);
-        self.sleeping = sleep::update(
+        let start = &self.scratch.step_start;
+        if !sleep::rest(
             &mut self.bodies,
             &self.movers,
             may_sleep,
-            &pairs,
-            &self.scratch.step_start,
+            start,
             dt,
             speed,
             delay,
-        );
+        ) {
+            // Nothing sleeps or can: no islands, and no broad phase to find them.
+            self.sleeping = 0;
+            return 0;
+        }
+        // Where the bodies are after the step: islands join bodies touching now.
+        self.broad_phase(dt);
+        let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
+        self.sleeping = sleep::islands(&mut self.bodies, &self.movers, &pairs, delay);
         self.sleeping
     }
 
