@@ -706,9 +706,13 @@ fn an_info_is_answered_while_snapshots_of_a_large_world_flood() {
         "the flood was answered: {}",
         arrived.len()
     );
-    // What the outbox may hold of them (4 MiB, about 45), and a pass's worth.
+    // What may go out ahead of the info: the pass it arrived during and the next (64
+    // queries each), what the outbox holds (4 MiB, about 45), and what zenoh's transport
+    // and the loopback socket still carry (up to about 100 more on a 2-core Xeon: 152 to
+    // 227 ahead in all, measured). A server answering in arrival order would put the
+    // whole flood ahead of it (over 1 000 here).
     assert!(
-        ahead <= 120,
+        ahead <= 300 && ahead * 3 < arrived.len(),
         "{ahead} snapshots went out ahead of the info asked after them"
     );
 }
