@@ -502,7 +502,7 @@ fn commands_that_cost_the_whole_world_are_held_to_the_servers_share_of_time() {
     // resets run). A flood of resets for 3 s, from a sender of its own and as requests
     // from another: without the budget the world would step one frame per reset (about
     // half its rate or less); with it, resets take at most their share of time and the
-    // world keeps its clock. (With 90 000 boxes a reset took 130 ms on one machine: the
+    // world keeps the rest of its clock. (With 90 000 boxes a reset took 130 ms on one machine: the
     // first ran, the rest were refused as too costly at once, `host/price.rs`.)
     let dir = temp_dir();
     let scene = "[world]\ngravity = [0, -10]\nbounds = [[0, 0], [700, 700]]\n\n\
@@ -533,8 +533,12 @@ fn commands_that_cost_the_whole_world_are_held_to_the_servers_share_of_time() {
         "frames stepped over frames due under the flood: {:.1}%; {health:?}",
         rate * 100.0
     );
+    // The budget lets commands take a fifth of real time, and 100 ms at once above it
+    // (`BudgetLimits::default`): over 3 s the world steps at least 1 - 0.2 - 0.1 / 3, 77%
+    // of its frames, less what the machine's noise takes (81% measured on a 2-core Xeon,
+    // over 90% elsewhere). Without the budget, about half.
     assert!(
-        rate > 0.9,
+        rate > 0.7,
         "the world stepped {:.0}% of its frames under the flood: {health:?}",
         rate * 100.0
     );
