@@ -502,8 +502,9 @@ fn commands_that_cost_the_whole_world_are_held_to_the_servers_share_of_time() {
     // resets run). A flood of resets for 3 s, from a sender of its own and as requests
     // from another: without the budget the world would step one frame per reset (about
     // half its rate or less); with it, resets take at most their share of time and the
-    // world keeps the rest of its clock. (With 90 000 boxes a reset took 130 ms on one machine: the
-    // first ran, the rest were refused as too costly at once, `host/price.rs`.)
+    // world keeps the rest of its clock. (With 90 000 boxes a reset took 130 ms on one
+    // machine: the first ran, the rest were refused as too costly at once,
+    // `host/price.rs`.)
     let dir = temp_dir();
     let scene = "[world]\ngravity = [0, -10]\nbounds = [[0, 0], [700, 700]]\n\n\
                  [[generate]]\nkind = \"grid\"\nid = \"tile\"\ngroup = \"tiles\"\nshape = \"rect\"\n\

@@ -105,27 +105,26 @@ impl Sweep {
         gain: &[DVec2],
         h: f64,
     ) {
-        // Most sub-steps have no heavy body in a contact: one look at each contact.
-        if !buckets
-            .iter()
-            .flatten()
-            .any(|c| heavy_of(c, sb, gain).is_some())
-        {
-            return;
-        }
-        let n = sb.len();
         // The heavy bodies that start clusters, in the order of the contacts (so the bits
-        // depend on nothing else).
-        self.root.clear();
-        self.root.resize(n, NONE);
+        // depend on nothing else). Most sub-steps have none: one look at each contact,
+        // and the per-body marks are laid out only once one is found.
+        let n = sb.len();
         self.order.clear();
         for c in buckets.iter().flatten() {
-            if let Some(heavy) = heavy_of(c, sb, gain) {
-                if self.root[heavy as usize] == NONE {
-                    self.root[heavy as usize] = heavy;
-                    self.order.push(heavy);
-                }
+            let Some(heavy) = heavy_of(c, sb, gain) else {
+                continue;
+            };
+            if self.order.is_empty() {
+                self.root.clear();
+                self.root.resize(n, NONE);
             }
+            if self.root[heavy as usize] == NONE {
+                self.root[heavy as usize] = heavy;
+                self.order.push(heavy);
+            }
+        }
+        if self.order.is_empty() {
+            return;
         }
         // The contacts that may join a cluster, by body: those still approaching
         // (whichever body the cluster reaches first: the test is the same from either
