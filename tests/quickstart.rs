@@ -66,7 +66,8 @@ fn the_readme_quick_start_for_your_own_scene_runs_as_written() {
     // The headless run dumped 121 frames: the state before the first step and after each.
     let dump = std::fs::read_to_string(dir.path().join("mine.jsonl")).unwrap();
     assert_eq!(dump.lines().count(), 121);
-    // The ball was struck: the server answered and moved it sideways.
+    // The ball was struck: the server answered and moved it sideways. The scene gives it no
+    // friction, so a bounce on the floor cannot take that speed back, whenever the strike lands.
     let replies: Vec<serde_json::Value> = stdout
         .lines()
         .filter(|l| l.starts_with('{'))
