@@ -38,7 +38,8 @@ pub enum Family {
     /// Columns and pyramids of boxes started 10% to 50% overlapped.
     Overlaps,
     /// Restitution 1, friction 0, no gravity: gases of 50 to 1000 circles in a box, rows
-    /// of touching and nearly touching balls.
+    /// of touching and nearly touching balls, a ball into a pile of touching circles or
+    /// boxes.
     Elastic,
     /// Bodies 0.01 to 0.1 at 100 to 2000 u/s against walls 0.02 to 0.5 thick.
     Bullets,

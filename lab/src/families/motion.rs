@@ -7,7 +7,10 @@ use rand_chacha::ChaCha8Rng;
 use super::draw::{criteria, limit, log_uniform, world, Scene, STEPS_DT};
 
 pub(super) fn elastic(rng: &mut ChaCha8Rng, s: &mut Scene) {
-    if rng.random_bool(0.5) {
+    let kind = rng.random_range(0..3u32);
+    if kind == 2 {
+        elastic_pile(rng, s);
+    } else if kind == 0 {
         let count = rng.random_range(50..=1000);
         let r = 0.5;
         let side = (count as f64 * 4.0 * r * r / 0.2).sqrt();
@@ -108,6 +111,104 @@ pub(super) fn elastic(rng: &mut ChaCha8Rng, s: &mut Scene) {
         s.note = format!("a row of {count} balls {gap:.1e} apart, the first at {v:.2} u/s");
     }
     criteria(s, &["steps = 1200".into(), "energy_change = 0.02".into()]);
+}
+
+/// A ball into a pile of touching bodies, in a closed box: a rack of circles (a triangle, as
+/// on a billiard table) or a block of boxes, 0 to 1% of a size apart. Without gravity, so
+/// that the kinetic energy is what an elastic world keeps.
+fn elastic_pile(rng: &mut ChaCha8Rng, s: &mut Scene) {
+    let gap = if rng.random_bool(0.5) {
+        0.0
+    } else {
+        log_uniform(rng, 1e-4, 1e-2)
+    };
+    let v = rng.random_range(1.0..=20.0);
+    let striker_mass = log_uniform(rng, 0.25, 4.0);
+    let half = 20.0;
+    world(
+        s,
+        1.0 / 60.0,
+        [0.0, 0.0],
+        ([-2.0 * half, -2.0 * half], [2.0 * half, 2.0 * half]),
+    );
+    let t = 2.0;
+    for (id, size, pos) in [
+        (
+            "wall/bottom",
+            [2.0 * half + 2.0 * t, t],
+            [0.0, -half - t / 2.0],
+        ),
+        ("wall/top", [2.0 * half + 2.0 * t, t], [0.0, half + t / 2.0]),
+        ("wall/left", [t, 2.0 * half], [-half - t / 2.0, 0.0]),
+        ("wall/right", [t, 2.0 * half], [half + t / 2.0, 0.0]),
+    ] {
+        s.rect(id, "walls", size, pos, 0.0, 0.0, 1.0);
+    }
+    let (what, height) = if rng.random_bool(0.5) {
+        // A triangle of circles r 0.5, its apex towards the striker.
+        let levels = rng.random_range(3..=8);
+        let pitch = 1.0 + gap;
+        let dx = pitch * 3f64.sqrt() / 2.0;
+        let mut k = 0;
+        for col in 0..levels {
+            for row in 0..=col {
+                let y = (row as f64 - col as f64 / 2.0) * pitch;
+                s.circle(
+                    &format!("pile/{k}"),
+                    "pile",
+                    0.5,
+                    [col as f64 * dx, y],
+                    [0.0, 0.0],
+                    1.0,
+                    0.0,
+                    1.0,
+                );
+                k += 1;
+            }
+        }
+        (
+            format!("a rack of {k} circles in {levels} rows"),
+            levels as f64 * pitch,
+        )
+    } else {
+        // A block of unit boxes, its left face towards the striker.
+        let (cols, rows) = (rng.random_range(1..=8), rng.random_range(2..=8));
+        let pitch = 1.0 + gap;
+        for i in 0..cols {
+            for j in 0..rows {
+                let y = (j as f64 - (rows - 1) as f64 / 2.0) * pitch;
+                s.rect(
+                    &format!("pile/{}", i * rows + j),
+                    "pile",
+                    [1.0, 1.0],
+                    [i as f64 * pitch, y],
+                    1.0,
+                    0.0,
+                    1.0,
+                );
+            }
+        }
+        (
+            format!("a block of {cols} x {rows} boxes"),
+            rows as f64 * pitch,
+        )
+    };
+    let aim = rng.random_range(-0.5..=0.5) * height;
+    s.circle(
+        "striker",
+        "pile",
+        0.5,
+        [-10.0, aim],
+        [v, 0.0],
+        striker_mass,
+        0.0,
+        1.0,
+    );
+    s.interact("pile", "pile");
+    s.interact("pile", "walls");
+    s.note = format!(
+        "a ball of mass {striker_mass:.2} at {v:.2} u/s into {what} {gap:.1e} apart, {aim:.2} off its middle"
+    );
 }
 
 pub(super) fn bullets(rng: &mut ChaCha8Rng, s: &mut Scene) {

@@ -333,6 +333,41 @@ fn sleeps_and_wakes(overrides: &[&str]) {
     );
 }
 
+/// Without gravity, an island that touches nothing static sleeps only if it does not
+/// drift: a block at rest sleeps; two touching balls drifting apart slower than
+/// `sleep_speed` fly on (sleeping them would stop them in mid-flight).
+#[test]
+fn without_gravity_a_block_at_rest_sleeps_and_a_slow_pair_drifts_on() {
+    let ball = |id: &str, x: f64, vx: f64| {
+        format!(
+            "[[body]]\nid = \"{id}\"\ngroup = \"balls\"\nshape = \"circle\"\nradius = 0.5\n\
+             pos = [{x}, 0.0]\nvel = [{vx}, 0.0]\nmass = 1.0\nrestitution = 1.0\nfriction = 0.0\n"
+        )
+    };
+    let mut text = "[world]\ngravity = [0.0, 0.0]\n\n".to_string();
+    // A row of four touching balls at rest, and far from it two touching balls drifting
+    // at 0.02 and 0.01 u/s (a tenth of sleep_speed's 0.05 would stop them).
+    for k in 0..4 {
+        text.push_str(&ball(&format!("block/{k}"), k as f64, 0.0));
+    }
+    text.push_str(&ball("pair/0", 20.0, 0.01));
+    text.push_str(&ball("pair/1", 21.0, 0.02));
+    text.push_str("[[interact]]\na = \"balls\"\nb = \"balls\"\n");
+    let mut w = scene::parse(&text, Path::new("drift.toml"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    w.step_n(120);
+    let asleep = |w: &World, id: &str| w.body(id).unwrap().asleep.is_some();
+    assert!(
+        (0..4).all(|k| asleep(&w, &format!("block/{k}"))),
+        "the block sleeps"
+    );
+    assert!(
+        !asleep(&w, "pair/0") && !asleep(&w, "pair/1"),
+        "the pair drifts on"
+    );
+    let x = w.body("pair/1").unwrap().pos.x;
+    assert!(x > 21.0 + 0.015 * 2.0 * 0.9, "the pair moved on: {x}");
+}
+
 #[test]
 fn without_sleeping_nothing_sleeps() {
     let settings: Vec<&str> = STABLE.iter().copied().chain(["sleeping=false"]).collect();

@@ -206,7 +206,18 @@ impl World {
         // Where the bodies are after the step: islands join bodies touching now.
         self.broad_phase(dt);
         let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
-        self.sleeping = sleep::islands(&mut self.bodies, &self.movers, &pairs, delay);
+        let config = &self.config;
+        let accelerated = |b: &crate::dynamics::body::Body| {
+            integrate::acceleration(b, config) != glam::DVec2::ZERO
+        };
+        self.sleeping = sleep::islands(
+            &mut self.bodies,
+            &self.movers,
+            &pairs,
+            accelerated,
+            speed,
+            delay,
+        );
         self.sleeping
     }
 
