@@ -209,10 +209,14 @@ pub struct WorldConfig {
     pub ccd: bool,
     /// Let bodies at rest sleep: an island of touching dynamic bodies that all moved slower
     /// than `sleep_speed` for `sleep_delay` seconds stops being integrated and is seen as
-    /// static by the solvers until something moving touches it. On by default, off under
-    /// the chapter's relaxation.
+    /// static by the solvers until something moving touches it. An island that touches no
+    /// static body and has no gravity sleeps only if its centre of mass is still (slower
+    /// than a hundredth of `sleep_speed`): a body drifting freely keeps its momentum. On
+    /// by default, off under the chapter's relaxation.
     pub sleeping: bool,
-    /// Speed below which a body counts as at rest (units/s).
+    /// Speed below which a body counts as at rest (units/s). A body at rest also stays
+    /// within `sleep_speed * sleep_delay` of its recent places, measured in its own sizes
+    /// if it is smaller than a unit.
     pub sleep_speed: f64,
     /// Seconds at rest before an island sleeps.
     pub sleep_delay: f64,

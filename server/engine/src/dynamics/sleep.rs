@@ -3,7 +3,8 @@
 //!
 //! After each step, touching dynamic bodies are joined into islands. An island whose
 //! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds, none straying
-//! further than that speed allows from its recent places, goes to sleep:
+//! further than that speed allows from its recent places (in its own sizes if it is
+//! smaller than a unit), goes to sleep:
 //! velocities zeroed, no integration, and the solvers see its bodies as static (their
 //! inverse mass is set aside during a step). An island that nothing holds (no static body,
 //! no sleeper, no gravity) must also have a still centre of mass: a free body keeps its
@@ -84,7 +85,11 @@ pub fn rest(
             Some(&(j, p)) if j == i => Some(p),
             _ => None,
         };
-        let reach = speed * delay.max(dt);
+        // The place is measured in the body's own size: one smaller than a unit must stay
+        // within `speed` of its sizes a second (the push-out of a small box still
+        // overlapped moves it slower than `speed` but not than that).
+        let size = 2.0 * b.shape.half_extents().min_element();
+        let reach = speed * size.min(1.0) * delay.max(dt);
         if b.rest_time == 0.0 {
             b.rest_anchor = from.unwrap_or(b.pos);
         }
