@@ -154,7 +154,9 @@ pub fn at_one_percent(
 /// overrides), and under `target` if given (an accuracy target and how many of the first
 /// seeds to run under it: the setting the target picks for the scene, judged
 /// [`at_one_percent`]), writing each scene to `dir` (`<family>-<seed>.toml`)
-/// and judging it by its criteria; `progress` ticks once a run.
+/// and judging it by its criteria; `progress` ticks once a run. `jobs` scenes run at once
+/// (each on a thread of its own); the runs come back in the same order whatever `jobs`
+/// is, and their figures are the same: only their times share the machine.
 pub fn run(
     families: &[Family],
     seeds: std::ops::Range<u64>,
@@ -162,44 +164,73 @@ pub fn run(
     target: Option<(f64, u64)>,
     dir: &std::path::Path,
     progress: &indicatif::ProgressBar,
+    jobs: usize,
 ) -> anyhow::Result<Vec<Run>> {
     std::fs::create_dir_all(dir)?;
     let count = seeds.clone().count() as u64;
     let targeted = target.map_or(0, |(_, n)| n.min(count));
     progress.set_length(families.len() as u64 * (count * settings.len() as u64 + targeted));
-    let mut runs = Vec::new();
-    for &family in families {
-        for seed in seeds.clone() {
-            let file = dir.join(format!("{}-{seed}.toml", family.name()));
-            std::fs::write(&file, family.scene(seed))?;
-            for (label, overrides) in settings {
-                progress.set_message(format!("{} {seed} / {label}", family.name()));
-                let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
-                let row = crate::suite::measure(&file, label, &overrides)?;
-                runs.push(Run {
-                    family,
-                    seed,
-                    setting: label.clone(),
-                    row,
-                    file: file.clone(),
-                    picked: None,
-                });
-                progress.inc(1);
-            }
-            if let Some((target, _)) = target.filter(|_| seed - seeds.start < targeted) {
-                progress.set_message(format!("{} {seed} / accuracy = {target}", family.name()));
-                let t = crate::suite::under_target_judged(&file, target, at_one_percent)?;
-                runs.push(Run {
-                    family,
-                    seed,
-                    setting: format!("accuracy = {target}, judged at 1%"),
-                    row: t.row,
-                    file: file.clone(),
-                    picked: Some((t.pick.candidate.name.clone(), t.measure_s)),
-                });
-                progress.inc(1);
-            }
+    let tasks: Vec<(Family, u64)> = families
+        .iter()
+        .flat_map(|&f| seeds.clone().map(move |s| (f, s)))
+        .collect();
+    let scene = |family: Family, seed: u64| -> anyhow::Result<Vec<Run>> {
+        let mut runs = Vec::new();
+        let file = dir.join(format!("{}-{seed}.toml", family.name()));
+        std::fs::write(&file, family.scene(seed))?;
+        for (label, overrides) in settings {
+            progress.set_message(format!("{} {seed} / {label}", family.name()));
+            let overrides: Vec<&str> = overrides.iter().map(String::as_str).collect();
+            let row = crate::suite::measure(&file, label, &overrides)?;
+            runs.push(Run {
+                family,
+                seed,
+                setting: label.clone(),
+                row,
+                file: file.clone(),
+                picked: None,
+            });
+            progress.inc(1);
         }
+        if let Some((target, _)) = target.filter(|_| seed - seeds.start < targeted) {
+            progress.set_message(format!("{} {seed} / accuracy = {target}", family.name()));
+            let t = crate::suite::under_target_judged(&file, target, at_one_percent)?;
+            runs.push(Run {
+                family,
+                seed,
+                setting: format!("accuracy = {target}, judged at 1%"),
+                row: t.row,
+                file: file.clone(),
+                picked: Some((t.pick.candidate.name.clone(), t.measure_s)),
+            });
+            progress.inc(1);
+        }
+        Ok(runs)
+    };
+    // Each worker takes the next scene; results go back in the tasks' order.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let done: std::sync::Mutex<Vec<Option<anyhow::Result<Vec<Run>>>>> =
+        std::sync::Mutex::new((0..tasks.len()).map(|_| None).collect());
+    std::thread::scope(|s| {
+        for _ in 0..jobs.clamp(1, tasks.len().max(1)) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(&(family, seed)) = tasks.get(k) else {
+                    break;
+                };
+                let result = scene(family, seed);
+                let failed = result.is_err();
+                done.lock().unwrap()[k] = Some(result);
+                if failed {
+                    // Stop handing out scenes: the first error is the answer.
+                    next.store(tasks.len(), std::sync::atomic::Ordering::Relaxed);
+                }
+            });
+        }
+    });
+    let mut runs = Vec::new();
+    for result in done.into_inner().unwrap().into_iter().flatten() {
+        runs.extend(result?);
     }
     Ok(runs)
 }
@@ -321,8 +352,38 @@ mod held {
             None,
             dir.path(),
             &progress,
+            2,
         )
         .unwrap()
+    }
+
+    /// Run at once or one by one, the same runs in the same order with the same figures.
+    #[test]
+    fn jobs_change_neither_the_order_nor_the_figures() {
+        let families = [Family::Friction, Family::Bullets];
+        let of = |jobs| {
+            let dir = tempfile::tempdir().unwrap();
+            let progress = indicatif::ProgressBar::hidden();
+            let settings = [("the default".to_string(), Vec::new())];
+            run(
+                &families,
+                0..6,
+                &settings,
+                None,
+                dir.path(),
+                &progress,
+                jobs,
+            )
+            .unwrap()
+            .into_iter()
+            .map(|r| (r.family, r.seed, r.row.criteria, r.row.holds))
+            .collect::<Vec<_>>()
+        };
+        let (one, three) = (of(1), of(3));
+        assert_eq!(one.len(), 12);
+        assert_eq!(one, three);
+        assert_eq!(one[0].0, Family::Friction);
+        assert_eq!(one[6].0, Family::Bullets);
     }
 
     /// Pyramids of boxes a fifth to a third of a unit wide, started a third to almost half
