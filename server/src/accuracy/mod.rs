@@ -42,7 +42,7 @@ pub const MEASURE_BUDGET_S: f64 = 6.0;
 pub const REFERENCE_MARGIN: f64 = 0.25;
 
 /// The format of a cached measure; bumped when what it measures changes.
-const CACHE_VERSION: u32 = 2;
+const CACHE_VERSION: u32 = 3;
 
 /// One measured candidate, as cached.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -60,9 +60,29 @@ pub struct Measured {
     /// `fails` says how that run went.
     #[serde(default)]
     pub checked: bool,
+    /// The figures of the scene's stated criteria that are shares ([`measure::SHARES`]),
+    /// from the longest run: a target holds them to itself.
+    #[serde(default)]
+    pub shares: Vec<(String, f64)>,
     pub work: u64,
     pub ms_median: f64,
     pub nan: bool,
+}
+
+impl Measured {
+    /// The criteria it fails under `target`: those it failed as the scene states them,
+    /// then each share the scene states ([`measure::SHARES`]) whose figure is above the
+    /// target (a target of 0.01 holds a drift, an energy change or a stopping distance
+    /// the scene allows at 2% to 1%).
+    pub fn fails_at(&self, target: f64) -> Vec<String> {
+        let mut fails = self.fails.clone();
+        for (name, figure) in &self.shares {
+            if !(*figure <= target) && !fails.contains(name) {
+                fails.push(name.clone());
+            }
+        }
+        fails
+    }
 }
 
 /// What a measure found, as cached.
@@ -195,19 +215,19 @@ impl Pick {
 
 /// Picks from a measure (see the module's rules).
 pub fn pick_from(measure: &Measure, target: f64, from_cache: bool) -> Option<Pick> {
-    let ok: Vec<&Measured> = measure
+    let ok: Vec<Measured> = measure
         .candidates
         .iter()
         // An error may be infinite (a reference of one refinement resolves nothing): the
         // criteria still judge it.
         .filter(|c| !c.nan && !c.worst_error.is_nan() && c.errors.len() == measure.agreement.len())
+        .map(|c| Measured {
+            fails: c.fails_at(target),
+            ..c.clone()
+        })
         .collect();
     let fewest = ok.iter().map(|c| c.fails.len()).min()?;
-    let pool: Vec<&Measured> = ok
-        .iter()
-        .copied()
-        .filter(|c| c.fails.len() == fewest)
-        .collect();
+    let pool: Vec<&Measured> = ok.iter().filter(|c| c.fails.len() == fewest).collect();
     let horizon = measure
         .agreement
         .iter()
@@ -397,6 +417,7 @@ fn measured(subject: &Subject) -> Result<Measure> {
                 errors: r.errors.clone(),
                 fails: r.fails.clone(),
                 checked: false,
+                shares: r.shares.clone(),
                 work: r.work,
                 ms_median: r.ms_median,
                 nan: r.nan,
@@ -431,21 +452,27 @@ fn check_pick(subject: &Subject, m: &mut Measure, target: f64) -> Result<bool> {
         }
         c.checked = true;
         ran = true;
-        let mut fails: Vec<String> = monitor
-            .verdict()
-            .into_iter()
+        // The whole run judges every step the measure's did and the rest: its verdict
+        // stands (a NaN the measure saw stays).
+        let verdict = monitor.verdict();
+        let mut fails: Vec<String> = verdict
+            .iter()
             .filter(|j| !j.pass)
             .map(|j| j.name.to_string())
             .collect();
-        if fails.is_empty() {
-            break;
-        }
-        for f in c.fails.drain(..) {
-            if !fails.contains(&f) {
-                fails.push(f);
-            }
+        if c.fails.iter().any(|f| f == "non_finite") && !fails.iter().any(|f| f == "non_finite") {
+            fails.push("non_finite".into());
         }
         c.fails = fails;
+        c.shares = measure::shares(
+            &verdict
+                .into_iter()
+                .filter(|j| j.limit.is_finite())
+                .collect::<Vec<_>>(),
+        );
+        if c.fails_at(target).is_empty() {
+            break;
+        }
     }
     Ok(ran)
 }
@@ -462,6 +489,7 @@ mod tests {
             errors: errors.to_vec(),
             fails: fails.iter().map(|f| f.to_string()).collect(),
             checked: false,
+            shares: Vec::new(),
             work,
             ms_median: 0.0,
             nan: false,
@@ -506,6 +534,33 @@ mod tests {
         let p = pick_from(&m, 1e-9, false).unwrap();
         assert_eq!((p.candidate.name.as_str(), p.met), ("exact", false));
         assert!(p.reason().contains("met by none"), "{}", p.reason());
+    }
+
+    #[test]
+    fn a_target_holds_the_scenes_stated_shares_to_itself() {
+        let share = |mut m: Measured, figure: f64| {
+            m.shares = vec![("stopping".into(), figure)];
+            m
+        };
+        let mut m = measure(
+            &[0.0],
+            vec![
+                // Both hold the scene's 2%; only the finer one holds 1%.
+                share(measured("coarse", &[1e-3], 10, &[]), 0.015),
+                share(measured("fine", &[1e-3], 40, &[]), 0.004),
+            ],
+        );
+        m.stated_criteria = true;
+        assert_eq!(pick_from(&m, 0.02, false).unwrap().candidate.name, "coarse");
+        let p = pick_from(&m, 0.01, false).unwrap();
+        assert_eq!((p.candidate.name.as_str(), p.holding), ("fine", 1));
+        // Tighter than either: the closer one, said to fail it.
+        let p = pick_from(&m, 0.001, false).unwrap();
+        assert_eq!(p.candidate.fails, ["stopping"]);
+        assert!(p.reason().contains("fails stopping"), "{}", p.reason());
+        // A figure that is not a number holds no target.
+        m.candidates[1].shares[0].1 = f64::NAN;
+        assert_eq!(pick_from(&m, 0.01, false).unwrap().candidate.name, "coarse");
     }
 
     #[test]

@@ -170,6 +170,23 @@ pub struct Row {
     /// What the run failed of the criteria that stay meaningful whatever the trajectories
     /// do ([`failed_criteria`]); empty when it holds them all.
     pub fails: Vec<String>,
+    /// The figures of the scene's stated criteria that are shares ([`SHARES`]), each the
+    /// worst over the run: an accuracy target holds them tighter than the scene states.
+    pub shares: Vec<(String, f64)>,
+}
+
+/// The stated criteria that are shares of a body's size, of the kinetic energy or of a
+/// stopping distance: under an accuracy target `TOL` each is held to at most `TOL`, as a
+/// share, however loosely the scene states it.
+pub const SHARES: [&str; 3] = ["drift", "energy_change", "stopping"];
+
+/// The figures of `verdict` that are [`SHARES`].
+pub fn shares(verdict: &[ricochet_engine::criteria::Judgement]) -> Vec<(String, f64)> {
+    verdict
+        .iter()
+        .filter(|j| SHARES.contains(&j.name))
+        .map(|j| (j.name.to_string(), j.figure))
+        .collect()
 }
 
 /// A run's error against the scene's closed form.
@@ -450,6 +467,7 @@ pub fn measure(
             on_front: false,
             errors: running_worst(&by_frame, Some(&resolved_by_frame)),
             fails: failed_criteria(r, &reference.run, stated_criteria, unit, world),
+            shares: shares(&r.verdict),
         });
     }
     let fronts: Vec<bool> = rows.iter().map(|r| on_front(r, &rows)).collect();
