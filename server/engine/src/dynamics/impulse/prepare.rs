@@ -10,7 +10,7 @@ use super::team::Team;
 use super::{
     blocks, bounce_speed, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, UNSLOTTED,
 };
-use super::{MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
+use super::{CONTACT_PUSH_OUT, MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
 use crate::dynamics::body::Body;
 use crate::geometry::separation;
 
@@ -322,7 +322,11 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 slop,
                 restitution: restitution as f32,
                 bounce_speed: bounce_speed as f32,
-                max_push: MAX_PUSH_OUT * size,
+                max_push: if accelerated || !params.split_impulses {
+                    MAX_PUSH_OUT * size
+                } else {
+                    CONTACT_PUSH_OUT * size
+                },
                 normal_impulse: if warm { jn } else { 0.0 },
                 tangent_impulse: if warm { jt } else { 0.0 },
                 pseudo_impulse: 0.0,

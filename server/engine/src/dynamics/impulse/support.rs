@@ -14,8 +14,8 @@
 //!
 //! With split impulses, the same sweep carries the push-out: each upper body is pushed
 //! out of its lower one at the contact's push-out speed on top of the lower body's, and
-//! no body, however many contacts push it up or aside, faster than one contact may push
-//! ([`super::MAX_PUSH_OUT`] sizes a second). A column started overlapped opens from the
+//! no body, however many contacts push it up or aside, faster than one of its own sizes a
+//! second ([`super::MAX_PUSH_OUT`]), as after the passes. A column started overlapped opens from the
 //! ground up in a few seconds, where the passes, starting each sub-step's push-out from
 //! nothing, opened only its top contacts; and a pyramid's top no longer moves at the
 //! sum of the pushes of every contact under it.
@@ -50,6 +50,9 @@ struct Record {
     gap: f64,
     slop: f64,
     max_push: f64,
+    /// The fastest the upper body may be pushed out ([`super::MAX_PUSH_OUT`] of its own
+    /// size a second), however many contacts push it.
+    body_push: f64,
     speculative: bool,
     fixed: bool,
 }
@@ -107,6 +110,12 @@ impl Sweep {
                 gap: c.gap,
                 slop: c.slop,
                 max_push: c.max_push,
+                body_push: super::MAX_PUSH_OUT
+                    * 2.0
+                    * bodies[slotted[upper as usize] as usize]
+                        .shape
+                        .half_extents()
+                        .min_element(),
                 speculative: c.speculative,
                 fixed: c.fixed,
             });
@@ -184,10 +193,10 @@ impl Sweep {
                 pseudo += up * ((target - apart) / r.cos);
             }
             // However many contacts push it, up or aside, a body is pushed out no faster
-            // than one of them may push.
+            // than its own cap (as after the passes).
             let speed = pseudo.length_squared();
-            if speed > r.max_push * r.max_push {
-                pseudo *= r.max_push / speed.sqrt();
+            if speed > r.body_push * r.body_push {
+                pseudo *= r.body_push / speed.sqrt();
             } else if apart >= target {
                 continue;
             }
