@@ -147,10 +147,12 @@ impl Pick {
         } else {
             "measured at start-up"
         };
-        let criteria = if self.stated_criteria {
+        let criteria = if !self.stated_criteria {
+            "escapes, resting drift, penetration and energy made or lost against the reference"
+        } else if c.shares.is_empty() {
             "the scene's criteria"
         } else {
-            "escapes, resting drift, penetration and energy made or lost against the reference"
+            "the scene's criteria, its shares held to the target"
         };
         let held = if c.fails.is_empty() {
             format!(
@@ -554,6 +556,7 @@ mod tests {
         assert_eq!(pick_from(&m, 0.02, false).unwrap().candidate.name, "coarse");
         let p = pick_from(&m, 0.01, false).unwrap();
         assert_eq!((p.candidate.name.as_str(), p.holding), ("fine", 1));
+        assert!(p.reason().contains("shares held to the target"), "{}", p.reason());
         // Tighter than either: the closer one, said to fail it.
         let p = pick_from(&m, 0.001, false).unwrap();
         assert_eq!(p.candidate.fails, ["stopping"]);
