@@ -556,7 +556,11 @@ mod tests {
         assert_eq!(pick_from(&m, 0.02, false).unwrap().candidate.name, "coarse");
         let p = pick_from(&m, 0.01, false).unwrap();
         assert_eq!((p.candidate.name.as_str(), p.holding), ("fine", 1));
-        assert!(p.reason().contains("shares held to the target"), "{}", p.reason());
+        assert!(
+            p.reason().contains("shares held to the target"),
+            "{}",
+            p.reason()
+        );
         // Tighter than either: the closer one, said to fail it.
         let p = pick_from(&m, 0.001, false).unwrap();
         assert_eq!(p.candidate.fails, ["stopping"]);
