@@ -43,6 +43,12 @@ pub use super::pairs::Pair;
 /// of 2, at 2.4 with 1.
 pub const MAX_PUSH_OUT: f64 = 1.0;
 
+/// The fastest `body` is pushed out however many contacts push it: [`MAX_PUSH_OUT`] of its
+/// own size a second (after the passes, and in the support sweep).
+fn body_push_out(body: &Body) -> f64 {
+    MAX_PUSH_OUT * 2.0 * body.shape.half_extents().min_element()
+}
+
 /// Where neither body of a pair is accelerated (no gravity), the fastest its contact's
 /// split impulse pushes it apart, in sizes of the smaller body a second. Each body is
 /// still pushed out no faster than [`MAX_PUSH_OUT`] of its own size, however many
@@ -511,9 +517,7 @@ pub fn solve_frame(
                 unpushed.extend(sb[..movers.len()].iter().map(|b| b.pseudo));
                 if step == 0 {
                     push_cap.clear();
-                    push_cap.extend(movers.iter().map(|&i| {
-                        MAX_PUSH_OUT * 2.0 * bodies[i as usize].shape.half_extents().min_element()
-                    }));
+                    push_cap.extend(movers.iter().map(|&i| body_push_out(&bodies[i as usize])));
                 }
             }
             passes::solve(

@@ -50,8 +50,8 @@ struct Record {
     gap: f64,
     slop: f64,
     max_push: f64,
-    /// The fastest the upper body may be pushed out ([`super::MAX_PUSH_OUT`] of its own
-    /// size a second), however many contacts push it.
+    /// The fastest the upper body may be pushed out, however many contacts push it
+    /// ([`super::body_push_out`]).
     body_push: f64,
     speculative: bool,
     fixed: bool,
@@ -110,12 +110,7 @@ impl Sweep {
                 gap: c.gap,
                 slop: c.slop,
                 max_push: c.max_push,
-                body_push: super::MAX_PUSH_OUT
-                    * 2.0
-                    * bodies[slotted[upper as usize] as usize]
-                        .shape
-                        .half_extents()
-                        .min_element(),
+                body_push: super::body_push_out(&bodies[slotted[upper as usize] as usize]),
                 speculative: c.speculative,
                 fixed: c.fixed,
             });
