@@ -164,9 +164,12 @@ pub struct PairSet {
     /// Where that frame is: a body's box at `pos` is at `pos - shift` in it.
     #[serde(default)]
     shift: DVec2,
-    /// The step the frame moved by since the last update (the `dt` it was given).
+    /// How long the bodies moved since the frame last moved ([`PairSet::advance`]): the
+    /// next update moves the frame that long at its velocity. An update that follows no
+    /// motion (the islands of sleeping, after the step's own broad phase) moves it not at
+    /// all, or the frame would run ahead of the bodies and every box leave its fat box.
     #[serde(default)]
-    last_dt: f64,
+    elapsed: f64,
     /// Bodies in the index (set by a rebuild, the only place that places or unplaces).
     #[serde(default)]
     in_play: usize,
@@ -248,6 +251,12 @@ impl PairSet {
         self.gravity = gravity;
     }
 
+    /// The bodies moved for `dt` since the last update (the world calls it after each
+    /// integration): the frame follows them at the next update.
+    pub fn advance(&mut self, dt: f64) {
+        self.elapsed += dt;
+    }
+
     /// Brings the pairs in `contacts` up to date for a step of `dt`. `revision` is the
     /// world's layout revision (a new one rebuilds everything), `resolving` the group
     /// pairs of the resolving interactions, `movers` the bodies that may have moved since
@@ -269,8 +278,8 @@ impl PairSet {
         if self.index.capacity() != self.fat.len() {
             self.reindex();
         }
-        self.shift += self.frame_velocity * self.last_dt;
-        self.last_dt = dt;
+        self.shift += self.frame_velocity * self.elapsed;
+        self.elapsed = 0.0;
         self.moved.clear();
         let still = self.frame_velocity == DVec2::ZERO;
         let statics = std::mem::take(&mut self.statics);
@@ -353,7 +362,7 @@ impl PairSet {
                 ),
             );
         }
-        if !(self.frame_velocity.is_finite() && self.shift.is_finite() && self.last_dt.is_finite())
+        if !(self.frame_velocity.is_finite() && self.shift.is_finite() && self.elapsed.is_finite())
         {
             return bad(
                 "frame_velocity",
@@ -528,7 +537,7 @@ impl PairSet {
     /// Places every body in play again in the set's frame and finds all its pairs; the
     /// pairs found again keep their impulses.
     fn search_all(&mut self, pairs: &mut Vec<Pair>, bodies: &[Body], dt: f64) {
-        self.last_dt = dt;
+        self.elapsed = 0.0;
         for i in 0..self.fat.len() as u32 {
             if self.fat[i as usize].placed {
                 self.place(bodies, i, dt);

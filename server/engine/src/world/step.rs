@@ -264,6 +264,7 @@ impl World {
             }
             Solver::Impulses => {
                 self.solve_impulses(stats, dt);
+                self.pair_set.advance(dt);
                 self.game_rules(HookPoint::AfterMotion);
             }
         }
@@ -273,6 +274,7 @@ impl World {
     fn move_bodies(&mut self, dt: f64) {
         integrate_bodies(&mut self.bodies, &self.movers, &self.config, dt);
         self.sweep_fast_bodies(dt);
+        self.pair_set.advance(dt);
     }
 
     /// With `ccd`, stops fast bodies at the first shape of their interactions they would
