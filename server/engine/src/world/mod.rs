@@ -212,6 +212,9 @@ struct Scratch {
     last_contacts: Vec<Pair>,
     /// Each moving body's place at the start of the step (kept only with sleeping on).
     step_start: Vec<(u32, glam::DVec2)>,
+    /// The energies (kinetic, mechanical) of a world that rested whole at the last step
+    /// (see [`World::dormant`]): nothing moved since, so they are the same.
+    dormant_energies: Option<(f64, f64)>,
 }
 
 impl World {

@@ -85,12 +85,17 @@ impl World {
         let (mut laps, mut took) = (Laps::start(self.profiling), StepProfile::default());
         let mut stats = StepStats::default();
         let energy_before = self.last_energy.unwrap_or_else(|| self.mechanical_energy());
-        self.freeze_sleepers();
         // Every body asleep and no rule steering any: nothing rigid can move this step, so
-        // neither the broad phase, the rigid stage nor the islands are computed (an action
-        // that moves a body or changes the world wakes them all first; a spawned body is
-        // awake).
+        // neither the broad phase, the rigid stage nor the islands are computed, and no
+        // per-body pass runs: the sleepers need no freezing, their energies are those of
+        // the last step (an action that moves a body or changes the world wakes them all
+        // first; a spawned body is awake).
         let dormant = self.dormant();
+        if dormant {
+            self.clear_collided();
+        } else {
+            self.freeze_sleepers();
+        }
         took.sleep = laps.lap_if(self.config.sleeping);
         self.game_rules(HookPoint::BeforeMotion);
         took.hooks = laps.lap_if(!self.behaving.is_empty());
@@ -107,13 +112,12 @@ impl World {
         stats.particle_contacts = self.particle_interactions();
         took.particle_interactions = laps.lap_if(!self.particles.is_empty());
         stats.sleeping = if dormant {
-            sleep::thaw(&mut self.bodies, &self.movers);
             self.sleeping
         } else {
             self.update_sleep()
         };
         took.sleep += laps.lap_if(self.config.sleeping);
-        self.energy_stage(&mut stats, energy_before);
+        self.energy_stage(&mut stats, energy_before, dormant);
         took.energy = laps.lap();
         took.step = laps.total();
         took.solve = self.solver_buffers.times.take().unwrap_or_default();
@@ -131,8 +135,13 @@ impl World {
 
     /// The step's energies: kinetic and mechanical after it, and the change since the
     /// last step (or the world's start).
-    fn energy_stage(&mut self, stats: &mut StepStats, energy_before: f64) {
-        (stats.kinetic_energy, stats.energy) = self.energies();
+    /// A dormant step computes them once for the whole rest: nothing moves in it.
+    fn energy_stage(&mut self, stats: &mut StepStats, energy_before: f64, dormant: bool) {
+        (stats.kinetic_energy, stats.energy) = match self.scratch.dormant_energies {
+            Some(e) if dormant => e,
+            _ => self.energies(),
+        };
+        self.scratch.dormant_energies = dormant.then_some((stats.kinetic_energy, stats.energy));
         stats.energy_change = stats.energy - energy_before;
         self.last_energy = Some(stats.energy);
     }
@@ -144,22 +153,21 @@ impl World {
             && self.behaving.is_empty()
             && !self.movers.is_empty()
             // The count the last step left (0 after anything woke the world): the bodies
-            // are read only when it says every one may sleep.
+            // are read only when it says every one may sleep, and not again while the
+            // world stays dormant (whatever wakes a body sets the count to 0).
             && self.sleeping as usize >= self.movers.len()
-            && self
-                .movers
-                .iter()
-                .all(|&i| self.bodies[i as usize].asleep.is_some())
+            && (self.scratch.dormant_energies.is_some()
+                || self
+                    .movers
+                    .iter()
+                    .all(|&i| self.bodies[i as usize].asleep.is_some()))
     }
 
     /// Before the step: last step's collided flags cleared; with sleeping on, sleepers
     /// frozen for the step and each mover's place noted (rest is judged from it after),
     /// with it off, everyone awake.
     fn freeze_sleepers(&mut self) {
-        for &i in &self.flagged {
-            self.bodies[i as usize].collided = false;
-        }
-        self.flagged.clear();
+        self.clear_collided();
         if !self.config.sleeping {
             self.wake_all();
             return;
@@ -172,6 +180,14 @@ impl World {
         self.scratch
             .step_start
             .extend(self.movers.iter().map(|&i| (i, bodies[i as usize].pos)));
+    }
+
+    /// Last step's collided flags cleared.
+    fn clear_collided(&mut self) {
+        for &i in &self.flagged {
+            self.bodies[i as usize].collided = false;
+        }
+        self.flagged.clear();
     }
 
     /// After the step, with sleeping on: sleepers get their mass back, touching bodies are
