@@ -150,6 +150,10 @@ pub struct PairSet {
     resolves: Vec<bool>,
     groups: usize,
     moved: Vec<u32>,
+    /// Each moved body's fat box before this update (scratch, read for the moved only): a
+    /// pair whose boxes overlapped before is kept already.
+    #[serde(skip)]
+    prior: Vec<Fat>,
     /// New pairs found by a search, as `a << 32 | b` (sorted, they are in pair order).
     found: Vec<u64>,
     merged: Vec<Pair>,
@@ -308,6 +312,10 @@ impl PairSet {
                 continue;
             }
             self.index.remove(i, f.min, f.max);
+            if self.prior.len() != self.fat.len() {
+                self.prior.resize(self.fat.len(), f);
+            }
+            self.prior[i as usize] = f;
             self.place(bodies, i, dt);
             let Fat { min, max, .. } = self.fat[i as usize];
             self.index.insert(i, min, max);
@@ -337,7 +345,7 @@ impl PairSet {
             self.searching[i as usize] = true;
         }
         for &i in &moved {
-            self.neighbours(bodies, i);
+            self.neighbours(bodies, i, true);
         }
         self.moved = moved;
         self.merge_found(pairs);
@@ -549,7 +557,7 @@ impl PairSet {
         self.searching.extend(self.fat.iter().map(|f| f.placed));
         for i in 0..self.fat.len() as u32 {
             if self.fat[i as usize].placed {
-                self.neighbours(bodies, i);
+                self.neighbours(bodies, i, false);
             }
         }
         let fat = &self.fat;
@@ -586,17 +594,29 @@ impl PairSet {
     }
 
     /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap, each once: a
-    /// pair of two searched bodies from the smaller's search.
-    fn neighbours(&mut self, bodies: &[Body], i: u32) {
+    /// pair of two searched bodies from the smaller's search. With `new_only`, after `i`
+    /// and the other searched bodies moved (their boxes before in `prior`), only the pairs
+    /// whose boxes did not overlap before: the others are kept already (the pairs are
+    /// exactly the eligible pairs whose boxes overlap).
+    fn neighbours(&mut self, bodies: &[Body], i: u32, new_only: bool) {
         let fi = self.fat[i as usize];
         if !fi.placed {
             return;
         }
-        let (fat, searching, found) = (&self.fat, &self.searching, &mut self.found);
+        let (fat, prior, searching, found) =
+            (&self.fat, &self.prior, &self.searching, &mut self.found);
         let (resolves, groups) = (&self.resolves, self.groups);
+        let was = |j: u32| {
+            if searching[j as usize] {
+                &prior[j as usize]
+            } else {
+                &fat[j as usize]
+            }
+        };
         self.index.query(fi.min, fi.max, |j| {
             if (j < i && searching[j as usize])
                 || !overlap(&fi, &fat[j as usize])
+                || (new_only && overlap(was(i), was(j)))
                 || !eligible(resolves, groups, bodies, i, j)
             {
                 return;

@@ -16,6 +16,14 @@ use glam::DVec2;
 /// iteration order where order matters, so results stay deterministic.
 pub type KeyMap<K, V> = rustc_hash::FxHashMap<K, V>;
 
+/// The cell coordinate `floor(t)`, clamped to +-1e15 (0 for NaN), without a call to the
+/// C library's `floor` (a build for any x86-64 has no instruction for it).
+fn floor_cell(t: f64) -> i64 {
+    let t = t.clamp(-1e15, 1e15);
+    let i = t as i64;
+    i - i64::from(i as f64 > t)
+}
+
 /// Where a slot sits in the grid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Cells {
@@ -68,7 +76,7 @@ impl Grid {
 
     /// The cells `x0..=x1, y0..=y1` a box covers, and how many they are (saturating).
     pub fn range_of(&self, min: DVec2, max: DVec2) -> ((i64, i64, i64, i64), i64) {
-        let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
+        let c = |v: f64| floor_cell(v / self.cell);
         let (x0, y0, x1, y1) = (c(min.x), c(min.y), c(max.x), c(max.y));
         let count = (x1 - x0 + 1).saturating_mul(y1 - y0 + 1);
         ((x0, y0, x1, y1), count)
@@ -195,7 +203,7 @@ impl Grid {
     /// takes every slot.
     pub fn query(&self, min: DVec2, max: DVec2, out: &mut Vec<u32>) {
         let start = out.len();
-        let c = |v: f64| (v / self.cell).floor().clamp(-1e15, 1e15) as i64;
+        let c = |v: f64| floor_cell(v / self.cell);
         let (x0, y0, x1, y1) = (c(min.x), c(min.y), c(max.x), c(max.y));
         if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > 4096 {
             out.extend(self.cells.values().flatten().copied());
@@ -232,6 +240,27 @@ mod tests {
         out.clear();
         g.query(DVec2::new(-1e6, -1e6), DVec2::new(1e6, 1e6), &mut out);
         assert_eq!(out, [1, 3, 7]);
+    }
+
+    #[test]
+    fn cells_are_the_floor_of_a_coordinate_over_the_side() {
+        for t in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.999,
+            -2.999,
+            1e14 + 0.5,
+            -1e14 - 0.5,
+        ] {
+            assert_eq!(floor_cell(t), t.floor() as i64, "{t}");
+        }
+        assert_eq!(floor_cell(1e300), 1_000_000_000_000_000);
+        assert_eq!(floor_cell(f64::NEG_INFINITY), -1_000_000_000_000_000);
+        assert_eq!(floor_cell(f64::NAN), 0);
     }
 
     #[test]
