@@ -72,9 +72,13 @@ fn the_chapters_relaxation_fails_the_suite() {
 }
 
 /// A crowd fuller than its box spreads its squeeze over its pairs rather than pressing a
-/// few circles along the walls into each other: in the crowded box (95% of the area), an
-/// even squeeze needs 2.3% of a diameter; with every contact capped at one size a second,
-/// 40 pairs overlapped by more than 30% after 10 s, the worst 98.9%.
+/// few circles along the walls into each other, and comes to rest. In the crowded box
+/// (484 circles 1.2 across on a grid 1.0 apart): with every contact capped at one size a
+/// second, 40 pairs overlapped by more than 30% after 10 s, the worst 98.9%; with the
+/// contacts' pushes solved one after another (`CONTACT_PUSH_OUT`), the worst was 34.5% and
+/// the crowd slept only after 17.5 s; with the pushes of a held crowd spread (each body
+/// moved by the mean of its contacts' pushes), it stays at its even start, 11% the worst,
+/// and sleeps within a second.
 #[test]
 fn the_crowded_box_spreads_its_squeeze() {
     let path = suite()
@@ -83,7 +87,11 @@ fn the_crowded_box_spreads_its_squeeze() {
         .unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let mut world = scene::parse(&text, &path, &[]).unwrap();
-    for _ in 0..600 {
+    for _ in 0..60 {
+        world.step();
+    }
+    assert_eq!(world.stats().sleeping, 484, "the crowd sleeps within a second");
+    for _ in 60..600 {
         world.step();
     }
     let circles: Vec<_> = world.bodies().iter().filter(|b| !b.is_static()).collect();
@@ -101,6 +109,6 @@ fn the_crowded_box_spreads_its_squeeze() {
     println!(
         "crowded box after 10 s: worst pair {worst:.3}, {deep} past 30%, sum {total:.1} diameters"
     );
-    assert!(worst < 0.4, "worst pair {worst} of a diameter");
-    assert!(deep <= 5, "{deep} pairs past 30% of a diameter");
+    assert!(worst < 0.15, "worst pair {worst} of a diameter");
+    assert_eq!(deep, 0, "{deep} pairs past 30% of a diameter");
 }

@@ -194,6 +194,9 @@ struct Contact {
     speculative: bool,
     /// One of the two bodies is static (soft contacts are stiffer there).
     fixed: bool,
+    /// Two moving bodies that nothing accelerates, under split impulses: its push-out is
+    /// spread ([`passes::spread_push_out`]), not solved in the passes.
+    free: bool,
     /// It bounced in the frame (its bodies count as collided).
     bounced: bool,
 }
@@ -312,6 +315,13 @@ pub struct SolverBuffers {
     unpushed: Vec<DVec2>,
     #[serde(skip)]
     push_cap: Vec<f64>,
+    /// Each body's spread push-out and how many contacts gave it (see
+    /// [`passes::spread_push_out`]).
+    #[serde(skip)]
+    spread: Vec<(DVec2, u32)>,
+    /// Union-find scratch of [`passes::hold_free`].
+    #[serde(skip)]
+    held: Vec<u32>,
     /// The frame's supporting contacts, by the body they hold up, lowest first (see
     /// [`support`]).
     #[serde(skip)]
@@ -481,6 +491,8 @@ pub fn solve_frame(
             push_cap,
             before,
             moved,
+            spread,
+            held,
             ..
         } = &mut *buffers;
         if let Some(up) = params.rest_load {
@@ -491,6 +503,7 @@ pub fn solve_frame(
         }
         clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
+        let found_free = found.free && passes::hold_free(sb, buckets, held);
         // The change under which a pass has converged, in the units of the smallest
         // contact.
         let converged = CONVERGED_CHANGE * found.smallest;
@@ -518,6 +531,9 @@ pub fn solve_frame(
                 if step == 0 {
                     push_cap.clear();
                     push_cap.extend(movers.iter().map(|&i| body_push_out(&bodies[i as usize])));
+                }
+                if found_free {
+                    passes::spread_push_out(sb, buckets, bias.push.rate, spread);
                 }
             }
             passes::solve(

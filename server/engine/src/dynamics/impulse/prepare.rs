@@ -44,6 +44,8 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         moved: _,
         unpushed: _,
         push_cap: _,
+        spread: _,
+        held: _,
         supports: _,
         impacts: _,
         crew: _,
@@ -172,6 +174,8 @@ pub(super) struct Found {
     pub bouncing: bool,
     /// Whether a contact with a static body overlaps beyond its slop.
     pub deep_fixed: bool,
+    /// Whether a contact is free (its push-out spread).
+    pub free: bool,
 }
 
 impl Default for Found {
@@ -182,6 +186,7 @@ impl Default for Found {
             smallest: f64::INFINITY,
             bouncing: false,
             deep_fixed: false,
+            free: false,
         }
     }
 }
@@ -195,6 +200,7 @@ impl Found {
             smallest: self.smallest.min(other.smallest),
             bouncing: self.bouncing || other.bouncing,
             deep_fixed: self.deep_fixed || other.deep_fixed,
+            free: self.free || other.free,
         }
     }
 }
@@ -312,6 +318,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             found.bouncing |= restitution > 0.0;
             let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
             found.deep_fixed |= fixed && -gap > slop;
+            let free = !fixed && !accelerated && params.split_impulses;
+            found.free |= free;
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
@@ -335,6 +343,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 // where it meets, not short of it.
                 speculative: gap > SPECULATIVE_GAP * size || (bounces && gap > 0.0),
                 fixed,
+                free,
                 bounced: false,
             });
         }
