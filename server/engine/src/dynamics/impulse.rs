@@ -62,7 +62,9 @@ fn body_push_out(body: &Body) -> f64 {
 /// gravity a contact keeps [`MAX_PUSH_OUT`]: there the support sweep carries a pile's
 /// push-out, and beds of circles under heavy boxes, their grains pushed harder, crept
 /// (2 more of 300 fresh seeds of heavy-on-light failed). Without split impulses the push
-/// is velocity and every contact keeps [`MAX_PUSH_OUT`].
+/// is velocity and every contact keeps [`MAX_PUSH_OUT`]. A crowd its container holds is
+/// not pushed out in the passes at all but by the mean of its contacts' pushes
+/// ([`passes::spread_push_out`]), which keeps it evenly squeezed and still.
 pub const CONTACT_PUSH_OUT: f64 = 10.0;
 
 /// A contact found with a larger gap than this (in body sizes) may close it and no more
