@@ -90,7 +90,11 @@ fn the_crowded_box_spreads_its_squeeze() {
     for _ in 0..60 {
         world.step();
     }
-    assert_eq!(world.stats().sleeping, 484, "the crowd sleeps within a second");
+    assert_eq!(
+        world.stats().sleeping,
+        484,
+        "the crowd sleeps within a second"
+    );
     for _ in 60..600 {
         world.step();
     }
