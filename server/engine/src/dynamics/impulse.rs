@@ -196,8 +196,9 @@ struct Contact {
     speculative: bool,
     /// One of the two bodies is static (soft contacts are stiffer there).
     fixed: bool,
-    /// Two moving bodies that nothing accelerates, under split impulses: its push-out is
-    /// spread ([`passes::spread_push_out`]), not solved in the passes.
+    /// Two moving bodies that nothing accelerates, under split impulses, of a crowd its
+    /// container holds ([`passes::hold_free`] keeps only those): its push-out is spread
+    /// ([`passes::spread_push_out`]), not solved in the passes.
     free: bool,
     /// It bounced in the frame (its bodies count as collided).
     bounced: bool,

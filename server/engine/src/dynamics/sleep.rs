@@ -45,7 +45,9 @@ pub fn wake(body: &mut Body) {
     body.rest_time = 0.0;
 }
 
-fn find(parent: &mut [u32], mut i: u32) -> u32 {
+/// The root of `i` in a union-find forest `parent` (each entry its parent, a root its
+/// own), halving the path on the way.
+pub(crate) fn find(parent: &mut [u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         let p = parent[i as usize];
         parent[i as usize] = parent[p as usize];

@@ -100,15 +100,8 @@ pub(super) fn hold_free(
     buckets: &mut [Vec<Contact>],
     parent: &mut Vec<u32>,
 ) -> bool {
+    use crate::dynamics::sleep::find;
     let n = sb.len();
-    fn find(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            let p = parent[i as usize];
-            parent[i as usize] = parent[p as usize];
-            i = p;
-        }
-        i
-    }
     // Slot `n` stands for every static body.
     parent.clear();
     parent.extend(0..=n as u32);
@@ -144,8 +137,8 @@ pub(super) fn hold_free(
     any
 }
 
-/// The push-out of the free contacts (two moving bodies nothing accelerates), after the
-/// passes: each contact's push, `rate` times its depth beyond the slop (capped at its
+/// The push-out of the free contacts (two moving bodies nothing accelerates, of a crowd
+/// its container holds: [`hold_free`]), before each sub-step's passes: each contact's push, `rate` times its depth beyond the slop (capped at its
 /// `max_push`), shared between its bodies by inverse mass, and each body moved by the mean
 /// of the pushes its contacts give it. Pushes that oppose each other cancel: a crowd
 /// squeezed evenly stays where it is, where pushes solved one after the other moved it
