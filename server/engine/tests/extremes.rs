@@ -180,6 +180,39 @@ fn boxes_overlapping_by_a_quarter_separate_and_come_to_rest() {
     assert!(r.energy < 1e-3, "kinetic energy {}", r.energy);
 }
 
+/// The suite's pyramid of 12 levels, each box a third into its neighbours: its rows
+/// widen as fast as its levels rise. Each contact starts its step from half the push it
+/// ended the last with, so a row's push builds up from step to step (from nothing each
+/// step, a row of 12 opened from its ends only and the pyramid was still a third
+/// overlapped after 3.3 s), and no box is pushed faster than the 5 u/s its criteria allow.
+#[test]
+fn a_pyramid_started_a_third_overlapped_is_apart_within_two_seconds() {
+    let mut w = load("suite/overlap-third.toml", &[]);
+    let mut fastest: f64 = 0.0;
+    for _ in 0..120 {
+        let before: Vec<_> = w.bodies().iter().map(|b| b.pos).collect();
+        w.step();
+        for (b, p) in w.bodies().iter().zip(&before) {
+            fastest = fastest.max(b.vel.length().max((b.pos - *p).length() * 60.0));
+        }
+    }
+    assert!(
+        w.stats().deepest_penetration < 0.01,
+        "still overlapped {} after 2 s",
+        w.stats().deepest_penetration
+    );
+    assert!(fastest <= 5.0, "a box pushed out at {fastest} u/s");
+    for _ in 0..120 {
+        w.step();
+    }
+    assert!(
+        w.bodies()
+            .iter()
+            .all(|b| b.inv_mass == 0.0 || b.asleep.is_some()),
+        "not asleep after 4 s"
+    );
+}
+
 #[test]
 fn coincident_centres_separate_without_nan() {
     for overrides in [&[][..], STABLE] {

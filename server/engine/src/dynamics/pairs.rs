@@ -53,6 +53,9 @@ pub struct Pair {
     pub normal: DVec2,
     pub normal_impulse: f64,
     pub tangent_impulse: f64,
+    /// The split impulse the solver pushed the pair apart with last step.
+    #[serde(default)]
+    pub pseudo_impulse: f64,
 }
 
 impl Pair {
@@ -63,6 +66,7 @@ impl Pair {
             normal: DVec2::ZERO,
             normal_impulse: 0.0,
             tangent_impulse: 0.0,
+            pseudo_impulse: 0.0,
         }
     }
 }

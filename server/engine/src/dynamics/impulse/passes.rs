@@ -35,6 +35,29 @@ pub(super) fn warm_start(team: &Team, sb: &mut [SolverBody], buckets: &mut [Vec<
     });
 }
 
+/// The split impulses the contacts pushed with last, applied again to the
+/// pseudo-velocities (which start from nothing each sub-step): a contact's push starts
+/// where its last sub-step left it (a share of it, [`super::prepare::WARM_PUSH_SHARE`], from
+/// one step to the next), so pushes that a few passes cannot carry across a body at once
+/// build up over the sub-steps. A row of 12 boxes a third into each other, pushed from
+/// nothing each sub-step, opened from its two ends only: its middle boxes, pushed both ways
+/// at once, stayed (the suite's `overlap-third` was still overlapped a third after 3.3 s;
+/// apart in 1.4 s now). A contact no longer overlapping takes its push back in the
+/// passes (to no more than parts it). Contacts of crowds held by their container
+/// ([`spread_push_out`]) start from nothing.
+pub(super) fn warm_push(team: &Team, sb: &mut [SolverBody], buckets: &mut [Vec<Contact>]) {
+    in_blocks(team, sb, buckets, |bodies, c| {
+        if c.pseudo_impulse > 0.0 {
+            let p = c.normal * c.pseudo_impulse;
+            let (a, b) = (c.a as usize, c.b as usize);
+            let (ia, ib) = (bodies.get(a).inv_mass, bodies.get(b).inv_mass);
+            bodies.update(a, |s| s.pseudo -= p * ia);
+            bodies.update(b, |s| s.pseudo += p * ib);
+        }
+        0.0
+    });
+}
+
 /// The biased passes: `iterations` of them, the position bias pushing touching contacts
 /// apart (into pseudo-velocities with split impulses), then up to `adaptive_iterations`
 /// more while the last one changed a contact's normal velocity by more than `converged`.
@@ -61,16 +84,8 @@ pub(super) fn solve(
     let residual = last_step && params.relax_iterations == 0;
     let mut k = 0;
     loop {
-        // Split impulses start from nothing each sub-step.
-        let fresh = params.split_impulses && k == 0;
         report.passes += 1;
-        let args = (
-            bias.push,
-            bias.push_fixed,
-            1.0 / h,
-            params.split_impulses,
-            fresh,
-        );
+        let args = (bias.push, bias.push_fixed, 1.0 / h, params.split_impulses);
         let measure = k + 1 >= params.iterations && (adaptive || residual);
         let change = velocity_pass(team, sb, buckets, args, measure);
         if params.split_impulses && deep_fixed {
@@ -299,7 +314,7 @@ pub(super) fn relax(
 ) {
     for k in 0..params.relax_iterations {
         report.passes += 1;
-        let args = (Bias::NONE, Bias::NONE, 1.0 / h, false, false);
+        let args = (Bias::NONE, Bias::NONE, 1.0 / h, false);
         let last = last_step && k + 1 == params.relax_iterations;
         if let Some(change) = velocity_pass(team, sb, buckets, args, last) {
             report.residual = change * h;
@@ -482,6 +497,11 @@ pub(super) fn store(
         };
         pair.normal_impulse = jn;
         pair.tangent_impulse = jt;
+        pair.pseudo_impulse = if asleep(c.a) || asleep(c.b) {
+            0.0
+        } else {
+            c.pseudo_impulse
+        };
         if c.normal_impulse > 0.0 || c.bounced {
             pushed[c.a as usize] = true;
             pushed[c.b as usize] = true;
@@ -499,19 +519,15 @@ pub(super) fn store(
 /// One contact's share of a velocity pass: the normal impulse that brings the normal
 /// velocity to its target (never pulling), then friction within the Coulomb cone. With
 /// `MEASURE`, returns the normal velocity change it made (0 otherwise).
-/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses,
-/// and whether the split impulses start from nothing.
+/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses.
 #[inline(always)]
 fn solve_contact<const MEASURE: bool>(
     sb: Bodies,
     c: &mut Contact,
-    args: (Bias, Bias, f64, bool, bool),
+    args: (Bias, Bias, f64, bool),
 ) -> f64 {
-    let (push, push_fixed, inv_h, split, fresh) = args;
+    let (push, push_fixed, inv_h, split) = args;
     {
-        if fresh {
-            c.pseudo_impulse = 0.0;
-        }
         let (a, b) = (c.a as usize, c.b as usize);
         let (ba, bb) = (sb.get(a), sb.get(b));
         let dv = bb.vel - ba.vel;
@@ -520,6 +536,9 @@ fn solve_contact<const MEASURE: bool>(
         let bias = if c.fixed { push_fixed } else { push };
         let (target, mass_scale, impulse_scale) = if c.speculative && gap > 0.0 {
             // Apart when found: close the gap within this sub-step, no further.
+            if split && c.pseudo_impulse > 0.0 {
+                push_out(sb, c, 0.0);
+            }
             (-gap * inv_h, 1.0, 0.0)
         } else {
             // Touching: hold, push out what exceeds the slop.
@@ -538,6 +557,11 @@ fn solve_contact<const MEASURE: bool>(
                     bias.impulse_scale,
                 )
             } else {
+                if split && c.pseudo_impulse > 0.0 {
+                    // Pushed apart last time and no longer overlapping: the push it
+                    // started from is taken back as far as it now parts them.
+                    push_out(sb, c, 0.0);
+                }
                 (0.0, 1.0, 0.0)
             }
         };
@@ -619,7 +643,7 @@ fn velocity_pass(
     team: &Team,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],
-    args: (Bias, Bias, f64, bool, bool),
+    args: (Bias, Bias, f64, bool),
     measure: bool,
 ) -> Option<f64> {
     if measure {
