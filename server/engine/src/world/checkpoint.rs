@@ -198,6 +198,13 @@ mod tests {
                     *entry(pair, "b") = Value::Integer(1_000_000.into())
                 }),
             ),
+            (
+                "contacts[0]",
+                Box::new(|v| {
+                    let pair = item(entry(entry(v, "contacts"), "pairs"), 0);
+                    *entry(pair, "pseudo_impulse") = Value::Float(f64::NAN)
+                }),
+            ),
             // NaN positions were served.
             (
                 "bodies[3].pos",

@@ -50,7 +50,10 @@ impl World {
                     format!("pair ({}, {}) of {n} bodies", p.a, p.b),
                 ));
             }
-            if !(finite2(p.normal) && p.normal_impulse.is_finite() && p.tangent_impulse.is_finite())
+            if !(finite2(p.normal)
+                && p.normal_impulse.is_finite()
+                && p.tangent_impulse.is_finite()
+                && p.pseudo_impulse.is_finite())
             {
                 return Err(bad(format!("contacts[{k}]"), "impulses not finite"));
             }
