@@ -544,7 +544,11 @@ pub fn solve_frame(
                     push_cap.clear();
                     push_cap.extend(movers.iter().map(|&i| body_push_out(&bodies[i as usize])));
                 }
-                passes::warm_push(team, sb, buckets);
+                // Before a step's first sub-step only the contacts found with a share
+                // of their last push have one; after it, any contact that pushed.
+                if step > 0 || found.warm_push {
+                    passes::warm_push(team, sb, buckets);
+                }
                 if found_free {
                     passes::spread_push_out(sb, buckets, bias.push.rate, spread);
                 }

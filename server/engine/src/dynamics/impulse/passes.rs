@@ -490,18 +490,14 @@ pub(super) fn store(
         // impulse its body will carry when it wakes. Warm-started with it, a grain a heavy
         // box landed on while it slept was launched at 400 u/s as it woke.
         let asleep = |k: u32| bodies[slotted[k as usize] as usize].asleep.is_some();
-        let (jn, jt) = if asleep(c.a) || asleep(c.b) {
-            (0.0, 0.0)
+        let (jn, jt, jp) = if asleep(c.a) || asleep(c.b) {
+            (0.0, 0.0, 0.0)
         } else {
-            (c.normal_impulse, c.tangent_impulse)
+            (c.normal_impulse, c.tangent_impulse, c.pseudo_impulse)
         };
         pair.normal_impulse = jn;
         pair.tangent_impulse = jt;
-        pair.pseudo_impulse = if asleep(c.a) || asleep(c.b) {
-            0.0
-        } else {
-            c.pseudo_impulse
-        };
+        pair.pseudo_impulse = jp;
         if c.normal_impulse > 0.0 || c.bounced {
             pushed[c.a as usize] = true;
             pushed[c.b as usize] = true;
@@ -534,36 +530,33 @@ fn solve_contact<const MEASURE: bool>(
         // Separation now: the frame's start plus how far the bodies moved since.
         let gap = c.gap + (bb.delta - ba.delta).dot(c.normal);
         let bias = if c.fixed { push_fixed } else { push };
-        let (target, mass_scale, impulse_scale) = if c.speculative && gap > 0.0 {
-            // Apart when found: close the gap within this sub-step, no further.
-            if split && c.pseudo_impulse > 0.0 {
+        // Apart when found: close the gap within this sub-step, no further. Touching: hold,
+        // push out what exceeds the slop.
+        let apart = c.speculative && gap > 0.0;
+        let pen = if apart { 0.0 } else { (-gap - c.slop).max(0.0) };
+        if split && !c.free {
+            // The push goes to the pseudo-velocities; the velocity only holds. Pushed
+            // apart before and no longer overlapping, a contact takes back the push it
+            // started from as far as it now parts its bodies.
+            if pen > 0.0 {
+                push_out(sb, c, bias.rate * pen);
+            } else if c.pseudo_impulse > 0.0 {
                 push_out(sb, c, 0.0);
             }
+        }
+        let (target, mass_scale, impulse_scale) = if apart {
             (-gap * inv_h, 1.0, 0.0)
+        } else if pen > 0.0 && split {
+            // The velocity holds, as softly as the contact is (rigid: fully).
+            (0.0, bias.mass_scale, bias.impulse_scale)
+        } else if pen > 0.0 {
+            (
+                (bias.rate * pen).min(c.max_push),
+                bias.mass_scale,
+                bias.impulse_scale,
+            )
         } else {
-            // Touching: hold, push out what exceeds the slop.
-            let pen = (-gap - c.slop).max(0.0);
-            if pen > 0.0 && split {
-                // The push goes to the pseudo-velocities; the velocity only holds.
-                if !c.free {
-                    push_out(sb, c, bias.rate * pen);
-                }
-                // The velocity holds, as softly as the contact is (rigid: fully).
-                (0.0, bias.mass_scale, bias.impulse_scale)
-            } else if pen > 0.0 {
-                (
-                    (bias.rate * pen).min(c.max_push),
-                    bias.mass_scale,
-                    bias.impulse_scale,
-                )
-            } else {
-                if split && c.pseudo_impulse > 0.0 {
-                    // Pushed apart last time and no longer overlapping: the push it
-                    // started from is taken back as far as it now parts them.
-                    push_out(sb, c, 0.0);
-                }
-                (0.0, 1.0, 0.0)
-            }
+            (0.0, 1.0, 0.0)
         };
         let vn = dv.dot(c.normal);
         let total = (c.normal_impulse + mass_scale * c.mass * (target - vn)

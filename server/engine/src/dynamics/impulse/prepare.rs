@@ -6,13 +6,6 @@ use std::sync::Mutex;
 
 use glam::DVec2;
 
-/// The share of the split impulse a contact ended its last step with that it starts the
-/// next with, while it still overlaps beyond twice its slop ([`super::passes::warm_push`]).
-/// Whole, a bed of grains under heavy boxes never settled: the pushes it started from
-/// fought each other in the few passes a step (6 of 300 fresh seeds of heavy-on-light
-/// crept at up to 0.8 u/s). Half builds a row's push up over a few steps and lets a bed's
-/// fade (all 300 held, 2 more than with none).
-pub(crate) const WARM_PUSH_SHARE: f64 = 0.5;
 use super::team::Team;
 use super::{
     blocks, bounce_speed, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, UNSLOTTED,
@@ -20,6 +13,14 @@ use super::{
 use super::{CONTACT_PUSH_OUT, MAX_PUSH_OUT, SPECULATIVE_GAP, WARM_START_SPEED};
 use crate::dynamics::body::Body;
 use crate::geometry::separation;
+
+/// The share of the split impulse a contact ended its last step with that it starts the
+/// next with, while it still overlaps beyond twice its slop ([`super::passes::warm_push`]).
+/// Whole, a bed of grains under heavy boxes never settled: the pushes it started from
+/// fought each other in the few passes a step (6 of 300 fresh seeds of heavy-on-light
+/// crept at up to 0.8 u/s). Half builds a row's push up over a few steps and lets a bed's
+/// fade (all 300 held, 2 more than with none).
+pub(crate) const WARM_PUSH_SHARE: f64 = 0.5;
 
 /// Fills `buffers` for the frame: the solver's bodies and what each mover gains per second
 /// (`gains`), the blocks, and the contacts of `pairs` (each pair's impulses taken: the solver
@@ -183,6 +184,8 @@ pub(super) struct Found {
     pub deep_fixed: bool,
     /// Whether a contact is free (its push-out spread).
     pub free: bool,
+    /// Whether a contact starts from a share of its last push ([`WARM_PUSH_SHARE`]).
+    pub warm_push: bool,
 }
 
 impl Default for Found {
@@ -194,6 +197,7 @@ impl Default for Found {
             bouncing: false,
             deep_fixed: false,
             free: false,
+            warm_push: false,
         }
     }
 }
@@ -208,6 +212,7 @@ impl Found {
             bouncing: self.bouncing || other.bouncing,
             deep_fixed: self.deep_fixed || other.deep_fixed,
             free: self.free || other.free,
+            warm_push: self.warm_push || other.warm_push,
         }
     }
 }
@@ -329,6 +334,12 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             found.deep_fixed |= fixed && -gap > slop;
             let free = !fixed && !accelerated && params.split_impulses;
             found.free |= free;
+            let jp = if warm && !free && params.split_impulses && -gap > 2.0 * slop {
+                WARM_PUSH_SHARE * jp
+            } else {
+                0.0
+            };
+            found.warm_push |= jp > 0.0;
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,
@@ -346,11 +357,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 },
                 normal_impulse: if warm { jn } else { 0.0 },
                 tangent_impulse: if warm { jt } else { 0.0 },
-                pseudo_impulse: if warm && !free && params.split_impulses && -gap > 2.0 * slop {
-                    WARM_PUSH_SHARE * jp
-                } else {
-                    0.0
-                },
+                pseudo_impulse: jp,
                 pair: (first + k) as u32,
                 // A pair about to bounce may close its gap, however small: it bounces
                 // where it meets, not short of it.
