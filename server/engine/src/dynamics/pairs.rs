@@ -14,8 +14,8 @@
 //! hand, interactions declared), which rebuilds the set.
 //!
 //! **A frame of reference of its own.** A fat box is swept along its body's travel (two
-//! steps of it, and grown by a quarter of that every way, for a body turned aside within a
-//! step), so a crowd moving together (a heavy body pushing hundreds ahead of it, a rain falling)
+//! steps of it under gravity, four without: `SWEPT_STEPS`; and grown by a quarter of that
+//! every way, for a body turned aside within a step), so a crowd moving together (a heavy body pushing hundreds ahead of it, a rain falling)
 //! would have every box grown by the crowd's speed and overlapping hundreds of others,
 //! though the bodies hardly move against each other. Whether two bodies can meet within
 //! a step depends only on how they move against each other, so the set keeps its boxes in
@@ -207,6 +207,23 @@ fn reach(body: &Body, frame: DVec2, dt: f64) -> f64 {
 /// instead of 97; with all of it (a box grown by its travel every way, as before the sweep),
 /// a body's box meets every neighbour it could reach in any direction.
 const SIDEWAYS: f64 = 0.25;
+
+/// How many steps of its travel a body's fat box is swept along: two for a body gravity
+/// pulls (its path curves), four for one nothing accelerates, which flies straight until
+/// it meets something. A spray of bodies flying apart then moves a body in the index
+/// every fourth step or so instead of every other one: the suite's smash, awake, ran
+/// 12% faster, the elastic family a quarter faster, impacts and crowds 7 to 9%; under
+/// gravity the longer boxes made the rains 4% slower (more pairs than moves saved).
+const SWEPT_STEPS: f64 = 2.0;
+const SWEPT_STEPS_FREE: f64 = 4.0;
+
+fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
+    if body.inv_mass > 0.0 && acceleration_under(body, gravity, false) != DVec2::ZERO {
+        SWEPT_STEPS
+    } else {
+        SWEPT_STEPS_FREE
+    }
+}
 
 /// A box swept by `d` and by `e`: the box, the box moved by either, and all between.
 fn swept_either(min: DVec2, max: DVec2, d: DVec2, e: DVec2) -> (DVec2, DVec2) {
@@ -574,20 +591,21 @@ impl PairSet {
     fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
         let body = &bodies[i as usize];
         let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
-        // Swept along two steps of travel in the frame, grown by a share of that travel
-        // and a quarter of the body's size (a body static for good in a frame at rest
-        // needs none).
+        // Swept along a few steps of travel in the frame ([`SWEPT_STEPS`]), grown by a
+        // share of that travel and a quarter of the body's size (a body static for good
+        // in a frame at rest needs none).
+        let steps = swept_steps(body, self.gravity);
         let travel = (velocity(body) - self.frame_velocity).length();
         let m = if fixed(body) && travel == 0.0 {
             0.0
         } else {
-            2.0 * travel * dt * SIDEWAYS + 0.25 * body.shape.half_extents().max_element()
+            steps * travel * dt * SIDEWAYS + 0.25 * body.shape.half_extents().max_element()
         };
         let (min, max) = swept_either(
             min,
             max,
-            2.0 * (velocity(body) - self.frame_velocity) * dt,
-            stop(body, self.gravity, self.frame_velocity, 2.0 * dt),
+            steps * (velocity(body) - self.frame_velocity) * dt,
+            stop(body, self.gravity, self.frame_velocity, steps * dt),
         );
         let (min, max) = (min - m, max + m);
         self.fat[i as usize] = Fat {
