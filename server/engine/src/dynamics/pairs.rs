@@ -15,9 +15,10 @@
 //!
 //! **A frame of reference of its own.** A fat box is swept along its body's travel (two
 //! steps of it under gravity, four without: `SWEPT_STEPS`; and grown by a quarter of that
-//! every way, for a body turned aside within a step), so a crowd moving together (a heavy body pushing hundreds ahead of it, a rain falling)
-//! would have every box grown by the crowd's speed and overlapping hundreds of others,
-//! though the bodies hardly move against each other. Whether two bodies can meet within
+//! every way, for a body turned aside within a step), so a crowd moving together (a heavy
+//! body pushing hundreds ahead of it, a rain falling) would have every box grown by the
+//! crowd's speed and overlapping hundreds of others, though the bodies hardly move
+//! against each other. Whether two bodies can meet within
 //! a step depends only on how they move against each other, so the set keeps its boxes in
 //! a frame moving at a velocity of its own (`PairSet::frame_velocity`): a box is swept
 //! along its body's travel in that frame, and any frame finds every pair that can meet.
@@ -211,9 +212,11 @@ const SIDEWAYS: f64 = 0.25;
 /// How many steps of its travel a body's fat box is swept along: two for a body gravity
 /// pulls (its path curves), four for one nothing accelerates, which flies straight until
 /// it meets something. A spray of bodies flying apart then moves a body in the index
-/// every fourth step or so instead of every other one: the suite's smash, awake, ran
-/// 12% faster, the elastic family a quarter faster, impacts and crowds 7 to 9%; under
-/// gravity the longer boxes made the rains 4% slower (more pairs than moves saved).
+/// about every fifth step instead of every other one: the suite's smash, awake, spent
+/// 65 us a step in the broad phase instead of 114, the elastic family's mean step fell
+/// by a third and the impacts' by 8%; under gravity the longer boxes made the rains 4%
+/// slower (more pairs than moves saved). The pairs found are still exactly the eligible
+/// pairs whose boxes overlap, and the contacts the same: the same bits.
 const SWEPT_STEPS: f64 = 2.0;
 const SWEPT_STEPS_FREE: f64 = 4.0;
 
