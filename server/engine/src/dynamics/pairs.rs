@@ -550,7 +550,7 @@ impl PairSet {
         };
         let travel = |frame: DVec2| placed().map(|v| (v - frame).length()).sum::<f64>();
         let now = travel(self.frame_velocity);
-        if !(now > 0.0) {
+        if now.is_nan() || now <= 0.0 {
             return None;
         }
         let mut median = [0.0; 2];
