@@ -70,6 +70,20 @@ impl Pair {
             pseudo_impulse: 0.0,
         }
     }
+
+    /// Whether the pair has an impulse left to start its next contact from (a normal,
+    /// friction or split impulse).
+    fn carries_impulses(&self) -> bool {
+        self.normal_impulse != 0.0 || self.tangent_impulse != 0.0 || self.pseudo_impulse != 0.0
+    }
+
+    /// Takes `other`'s normal and impulses (the same pair, found again).
+    fn take_impulses(&mut self, other: &Pair) {
+        self.normal = other.normal;
+        self.normal_impulse = other.normal_impulse;
+        self.tangent_impulse = other.tangent_impulse;
+        self.pseudo_impulse = other.pseudo_impulse;
+    }
 }
 
 /// The candidate pairs the solver works through, each carrying the impulses the solver
@@ -83,7 +97,8 @@ pub struct Contacts {
 
 impl Contacts {
     /// Replaces the pairs by `candidates` (either way round, repeats allowed: each pair
-    /// counts once); a pair kept from last step keeps its impulses if it had any.
+    /// counts once); a pair kept from last step keeps its impulses (split impulse too) if
+    /// it had any.
     /// `kept` is scratch space.
     pub fn refill(&mut self, candidates: &mut Vec<(u32, u32)>, kept: &mut Vec<Pair>) {
         for p in candidates.iter_mut() {
@@ -101,10 +116,8 @@ impl Contacts {
             let mut p = Pair::new(a, b);
             while last.next_if(|o| (o.a, o.b) < (a, b)).is_some() {}
             if let Some(o) = last.next_if(|o| (o.a, o.b) == (a, b)) {
-                if o.normal_impulse != 0.0 || o.tangent_impulse != 0.0 {
-                    p.normal = o.normal;
-                    p.normal_impulse = o.normal_impulse;
-                    p.tangent_impulse = o.tangent_impulse;
+                if o.carries_impulses() {
+                    p.take_impulses(o);
                 }
             }
             p
@@ -473,7 +486,7 @@ impl PairSet {
         // Warm-starting impulses survive a rebuild, found again by the bodies' keys.
         let old: KeyMap<(u32, u32), Pair> = pairs
             .iter()
-            .filter(|p| p.normal_impulse != 0.0 || p.tangent_impulse != 0.0)
+            .filter(|p| p.carries_impulses())
             .map(|p| {
                 let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
                 ((ka.min(kb), ka.max(kb)), *p)
@@ -534,9 +547,7 @@ impl PairSet {
             for p in pairs.iter_mut() {
                 let (ka, kb) = (bodies[p.a as usize].key.0, bodies[p.b as usize].key.0);
                 if let Some(o) = old.get(&(ka.min(kb), ka.max(kb))) {
-                    p.normal = o.normal;
-                    p.normal_impulse = o.normal_impulse;
-                    p.tangent_impulse = o.tangent_impulse;
+                    p.take_impulses(o);
                 }
             }
         }

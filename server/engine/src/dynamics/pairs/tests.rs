@@ -221,6 +221,11 @@ fn bodies_at_rest_are_never_looked_at_again_and_impulses_survive_a_rebuild() {
         .pairs
         .iter_mut()
         .for_each(|p| p.normal_impulse = (p.a * 100 + p.b) as f64);
+    // The floor's contact pushes its box out: only a split impulse left, kept too.
+    let floor = contacts.pairs.iter_mut().find(|p| (p.a, p.b) == (0, 10));
+    let floor = floor.expect("the floor's pair");
+    floor.normal_impulse = 0.0;
+    floor.pseudo_impulse = 0.25;
     let before: Vec<(u32, u32, f64)> = contacts
         .pairs
         .iter()
@@ -251,6 +256,8 @@ fn bodies_at_rest_are_never_looked_at_again_and_impulses_survive_a_rebuild() {
         }
     }
     assert!(contacts.pairs.iter().any(|p| p.normal_impulse > 0.0));
+    let floor = contacts.pairs.iter().find(|p| (p.a, p.b) == (0, 9));
+    assert_eq!(floor.map(|p| p.pseudo_impulse), Some(0.25));
 }
 
 #[test]
@@ -266,6 +273,8 @@ fn a_refill_keeps_the_impulses_of_the_pairs_found_again_and_removal_renumbers() 
     }
     // (0, 3) has no impulse left: it comes back cold, normal and all.
     contacts.pairs[0].normal_impulse = 0.0;
+    // (3, 4) pushed its bodies apart last step: its split impulse comes back with it.
+    contacts.pairs[2].pseudo_impulse = 0.5;
     contacts.refill(&mut vec![(4, 3), (0, 3), (2, 5), (1, 2)], &mut kept);
     let found: Vec<(u32, u32, f64, DVec2)> = contacts
         .pairs
@@ -281,6 +290,8 @@ fn a_refill_keeps_the_impulses_of_the_pairs_found_again_and_removal_renumbers() 
             (3, 4, 34.0, DVec2::Y)
         ]
     );
+    let pushes: Vec<f64> = contacts.pairs.iter().map(|p| p.pseudo_impulse).collect();
+    assert_eq!(pushes, [0.0, 0.0, 0.0, 0.5]);
     contacts.remove_bodies(&[false, false, true, false, false, false]);
     let left: Vec<(u32, u32, f64)> = contacts
         .pairs
