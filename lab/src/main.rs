@@ -169,6 +169,11 @@ enum Command {
         /// suite/rain.toml, emitters.toml).
         #[arg(long = "scene", value_name = "FILE")]
         scene: Vec<String>,
+        /// Runs every scene under these `[world]` overrides, NAME=VALUE (repeatable), e.g.
+        /// `--set threads=2 --set sleeping=false`: a stage's time under two settings is two
+        /// runs, one table each.
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<String>,
         /// Write the table between the profile markers of this file.
         #[arg(long, value_name = "FILE")]
         out: Option<PathBuf>,
@@ -438,6 +443,7 @@ fn main() -> Result<()> {
             steps,
             scenes,
             scene,
+            set,
             out,
         } => {
             let names = if scene.is_empty() {
@@ -448,7 +454,7 @@ fn main() -> Result<()> {
             } else {
                 scene
             };
-            let report = ricochet_lab::profile::run(&scenes, &names, steps)?;
+            let report = ricochet_lab::profile::run(&scenes, &names, steps, &set)?;
             print_table(&report.to_markdown(), out.as_deref(), "profile")
         }
         Command::Soak {

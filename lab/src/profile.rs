@@ -71,17 +71,24 @@ impl Row {
 pub struct ProfileReport {
     pub steps: u64,
     pub rows: Vec<Row>,
+    /// The `[world]` overrides every scene ran under.
+    pub set: Vec<String>,
+    /// The most threads a scene's step could use (its `threads`, at most the cores).
+    pub threads: usize,
 }
 
-/// Runs each scene for `steps` steps, profiled.
-pub fn run(scenes: &Path, names: &[String], steps: u64) -> Result<ProfileReport> {
+/// Runs each scene for `steps` steps, profiled, under the `[world]` overrides `set`
+/// (NAME=VALUE).
+pub fn run(scenes: &Path, names: &[String], steps: u64, set: &[String]) -> Result<ProfileReport> {
     let mut rows = Vec::new();
+    let mut threads = 1;
     for name in names {
         let path = scenes.join(name);
         let text = std::fs::read_to_string(&path)
             .with_context(|| format!("cannot read scene {}", path.display()))?;
-        let mut world = scene::parse(&text, &path, &[])?;
+        let mut world = scene::parse(&text, &path, set)?;
         world.set_profiling(true);
+        threads = threads.max(ricochet_engine::parallel::effective(world.config.threads));
         let mut row = Row {
             scene: name.clone(),
             stages: vec![Duration::ZERO; STAGES.len()],
@@ -97,7 +104,12 @@ pub fn run(scenes: &Path, names: &[String], steps: u64) -> Result<ProfileReport>
         }
         rows.push(row);
     }
-    Ok(ProfileReport { steps, rows })
+    Ok(ProfileReport {
+        steps,
+        rows,
+        set: set.to_vec(),
+        threads,
+    })
 }
 
 impl ProfileReport {
@@ -132,10 +144,19 @@ impl ProfileReport {
              step timed by the world's profile, means over every step; the rigid stage's \
              lines marked `-` are the impulse solver's own stages within it, the rest of it \
              being the chapter's relaxation where a scene names it, and the time between the \
-             solver's stages; on {}):\n\n{t}",
+             solver's stages{}; on {}):\n\n{t}",
             crate::command_line(),
             self.steps,
-            crate::machine(),
+            if self.set.is_empty() {
+                String::new()
+            } else {
+                format!("; every scene under `{}`", self.set.join("`, `"))
+            },
+            if self.threads > 1 {
+                format!("{}, {} threads used", crate::cpu(), self.threads)
+            } else {
+                crate::machine()
+            },
         )
     }
 }

@@ -212,6 +212,36 @@ fn profile_times_every_stage_of_a_scene_and_writes_its_table() {
 }
 
 #[test]
+fn profile_runs_every_scene_under_the_settings_it_is_given() {
+    let scenes = scene("");
+    let text = report_page(
+        "profile",
+        &[
+            "profile",
+            "--steps",
+            "20",
+            "--scenes",
+            &scenes,
+            "--scene",
+            "pyramid-10.toml",
+            "--set",
+            "solver=relaxation",
+        ],
+    );
+    // The pyramid's own solver is the impulse solver: under the chapter's relaxation its
+    // impulse passes take no time, and the page says what it ran under.
+    let passes = text
+        .lines()
+        .find(|l| l.starts_with("| - velocity passes |"))
+        .unwrap_or_else(|| panic!("no passes row: {text}"));
+    assert!(passes.contains("| 0.0 (0%) |"), "{text}");
+    assert!(
+        text.contains("every scene under `solver=relaxation`"),
+        "{text}"
+    );
+}
+
+#[test]
 fn tradeoff_writes_beside_the_user_not_into_docs() {
     let dir = temp_dir();
     std::fs::write(

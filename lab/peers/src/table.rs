@@ -218,7 +218,10 @@ fn threads_table(s: &mut String, results: &[SceneResult]) {
          threads'), and whether the two runs end in the same state bit for bit (every \
          body's position and velocity). Work is split only where it splits without \
          changing a bit (blocks of contacts that share no moving body, chunks of at \
-         least {} particles), so small scenes stay on one thread.\n\n\
+         least {} particles), so small scenes stay on one thread. Why the speed-up stays \
+         small on large piles too (the work that splits is about half of their step) and \
+         what would raise it: docs/bench/engine-notes.md, \"Why two threads stay far from \
+         1.7x\".\n\n\
          | scene | 1 thread ms/step | 2 threads ms/step | speed-up | same bits |\n\
          |---|---:|---:|---:|---|",
         ricochet_engine::parallel::MIN_SPLIT
