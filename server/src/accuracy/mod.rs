@@ -77,7 +77,8 @@ impl Measured {
     pub fn fails_at(&self, target: f64) -> Vec<String> {
         let mut fails = self.fails.clone();
         for (name, figure) in &self.shares {
-            if !(*figure <= target) && !fails.contains(name) {
+            // A figure that is not a number fails too.
+            if (figure.is_nan() || *figure > target) && !fails.contains(name) {
                 fails.push(name.clone());
             }
         }

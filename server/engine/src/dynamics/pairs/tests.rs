@@ -330,7 +330,7 @@ fn meeting(
                         let stopped = w > 0 && ((i >> bit) & 1 == 1) == set;
                         Body {
                             pos: b.pos + if stopped { DVec2::ZERO } else { b.vel * t },
-                            ..b.clone()
+                            ..*b
                         }
                     })
                     .collect();
