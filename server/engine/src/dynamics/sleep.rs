@@ -135,7 +135,7 @@ pub const FREE_DRIFT: f64 = 0.01;
 pub fn islands(
     bodies: &mut [Body],
     movers: &[u32],
-    pairs: &[(u32, u32)],
+    pairs: impl Iterator<Item = (u32, u32)> + Clone,
     accelerated: impl Fn(&Body) -> bool,
     speed: f64,
     delay: f64,
@@ -145,7 +145,7 @@ pub fn islands(
     // bodies changes no island's fate (both islands are restless already), so their pair
     // is not looked at: in a pile being pushed apart, most pairs.
     let restless = |b: &Body| b.asleep.is_none() && b.rest_time < delay;
-    for &(i, j) in pairs {
+    for (i, j) in pairs.clone() {
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
         if a.is_static() || b.is_static() || (restless(a) && restless(b)) || !touching(a, b) {
             continue;
@@ -193,7 +193,7 @@ pub fn islands(
         }
     }
     if any_drift {
-        for &(i, j) in pairs {
+        for (i, j) in pairs {
             let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
             let mover = match (a.is_static(), b.is_static()) {
                 (true, false) => j,

@@ -16,7 +16,7 @@ use super::{Side, World};
 impl World {
     /// Finds the candidate pairs of every resolving interaction between groups for a step
     /// of `dt` from where the bodies are now: with the grid, its persistent pairs brought
-    /// up to date ([`World::found_pairs`] reads them); otherwise each interaction's pairs
+    /// up to date (in `contacts.pairs`); otherwise each interaction's pairs
     /// in declaration order, into the scratch candidates (every pair of the two groups under
     /// `all_pairs`).
     pub(super) fn broad_phase(&mut self, dt: f64) {
@@ -47,15 +47,6 @@ impl World {
         }
         self.scratch.interaction_pairs = some;
         self.scratch.candidates = all;
-    }
-
-    /// The pairs the last [`World::broad_phase`] found.
-    pub(super) fn found_pairs(&self) -> Box<dyn Iterator<Item = (u32, u32)> + '_> {
-        if self.config.broad_phase == BroadPhase::Grid {
-            Box::new(self.contacts.pairs.iter().map(|p| (p.a, p.b)))
-        } else {
-            Box::new(self.scratch.candidates.iter().copied())
-        }
     }
 
     /// Candidate pairs of the interaction between groups `a` and `b`, in all-pairs order:

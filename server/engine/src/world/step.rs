@@ -221,19 +221,32 @@ impl World {
         }
         // Where the bodies are after the step: islands join bodies touching now.
         self.broad_phase(dt);
-        let pairs: Vec<(u32, u32)> = self.found_pairs().collect();
         let config = &self.config;
         let accelerated = |b: &crate::dynamics::body::Body| {
             integrate::acceleration(b, config) != glam::DVec2::ZERO
         };
-        self.sleeping = sleep::islands(
-            &mut self.bodies,
-            &self.movers,
-            &pairs,
-            accelerated,
-            speed,
-            delay,
-        );
+        // The pairs the broad phase found, read where they are (no copy a step).
+        self.sleeping = if config.broad_phase == BroadPhase::Grid {
+            let pairs = self.contacts.pairs.iter().map(|p| (p.a, p.b));
+            sleep::islands(
+                &mut self.bodies,
+                &self.movers,
+                pairs,
+                accelerated,
+                speed,
+                delay,
+            )
+        } else {
+            let pairs = self.scratch.candidates.iter().copied();
+            sleep::islands(
+                &mut self.bodies,
+                &self.movers,
+                pairs,
+                accelerated,
+                speed,
+                delay,
+            )
+        };
         self.sleeping
     }
 

@@ -116,6 +116,14 @@ pub(super) fn hold_free(
     parent: &mut Vec<u32>,
 ) -> bool {
     use crate::dynamics::sleep::find;
+    // Nothing static touched: no crowd is held, and no contact stays free (a block struck
+    // in open space, as the suite's smash, pays one look at its contacts, not the joins).
+    if !buckets.iter().flatten().any(|c| c.fixed && c.gap <= 0.0) {
+        for c in buckets.iter_mut().flatten() {
+            c.free = false;
+        }
+        return false;
+    }
     let n = sb.len();
     // Slot `n` stands for every static body.
     parent.clear();
