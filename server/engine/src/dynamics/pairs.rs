@@ -377,8 +377,6 @@ impl PairSet {
         }
         self.index.flush();
         self.reinserted += self.moved.len() as u64;
-        let fat = &self.fat;
-        pairs.retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
         self.found.clear();
         let moved = std::mem::take(&mut self.moved);
         self.searching.clear();
@@ -600,8 +598,6 @@ impl PairSet {
                 self.neighbours(bodies, i, false);
             }
         }
-        let fat = &self.fat;
-        pairs.retain(|p| overlap(&fat[p.a as usize], &fat[p.b as usize]));
         self.merge_found(pairs);
     }
 
@@ -667,9 +663,17 @@ impl PairSet {
         });
     }
 
-    /// Adds the pairs in `found` that are not kept yet, keeping `pairs` sorted.
+    /// Drops the pairs whose boxes no longer overlap and adds those in `found` that are not
+    /// kept yet, keeping `pairs` sorted, in one pass. Only a searched body's box changed: a
+    /// pair of two others still overlaps.
     fn merge_found(&mut self, pairs: &mut Vec<Pair>) {
+        let (fat, searching) = (&self.fat, &self.searching);
+        let keep = |p: &Pair| {
+            let (a, b) = (p.a as usize, p.b as usize);
+            !(searching[a] || searching[b]) || overlap(&fat[a], &fat[b])
+        };
         if self.found.is_empty() {
+            pairs.retain(keep);
             return;
         }
         self.found.sort_unstable();
@@ -678,6 +682,9 @@ impl PairSet {
         let split = |k: u64| ((k >> 32) as u32, k as u32);
         let mut new = self.found.iter().map(|&k| split(k)).peekable();
         for p in pairs.iter() {
+            if !keep(p) {
+                continue;
+            }
             while let Some(&(a, b)) = new.peek() {
                 if (a, b) < (p.a, p.b) {
                     self.merged.push(Pair::new(a, b));
