@@ -226,27 +226,19 @@ impl World {
             integrate::acceleration(b, config) != glam::DVec2::ZERO
         };
         // The pairs the broad phase found, read where they are (no copy a step).
-        self.sleeping = if config.broad_phase == BroadPhase::Grid {
-            let pairs = self.contacts.pairs.iter().map(|p| (p.a, p.b));
-            sleep::islands(
-                &mut self.bodies,
-                &self.movers,
-                pairs,
-                accelerated,
-                speed,
-                delay,
-            )
+        let pairs = if config.broad_phase == BroadPhase::Grid {
+            either::Left(self.contacts.pairs.iter().map(|p| (p.a, p.b)))
         } else {
-            let pairs = self.scratch.candidates.iter().copied();
-            sleep::islands(
-                &mut self.bodies,
-                &self.movers,
-                pairs,
-                accelerated,
-                speed,
-                delay,
-            )
+            either::Right(self.scratch.candidates.iter().copied())
         };
+        self.sleeping = sleep::islands(
+            &mut self.bodies,
+            &self.movers,
+            pairs,
+            accelerated,
+            speed,
+            delay,
+        );
         self.sleeping
     }
 
