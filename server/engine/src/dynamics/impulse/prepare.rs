@@ -252,13 +252,20 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             let rel = b.vel - a.vel;
             let (ha, hb) = (a.shape.half_extents(), b.shape.half_extents());
             let size = ha.min_element().min(hb.min_element()) * 2.0;
-            // Too far apart to meet within the frame: no contact. Within the gap a
-            // resting contact holds they may meet whatever their speed. (A reach of a
-            // tenth of their size, as before, made a contact of every neighbour of a calm
-            // crowd of circles a few hundredths apart, solved every pass for nothing: the
-            // crowds ran 3.5 times slower awake; every family holds as it did.)
-            let reach = SPECULATIVE_GAP * size;
+            // Too far apart to meet within the frame: no contact. A pair that gravity
+            // pulls, or that moves and may bounce, may meet within a tenth of its size
+            // whatever its speed (a body struck or turned back within the step); any other
+            // pair only within the gap a resting contact holds. The tenth for every pair
+            // made a contact of every neighbour of a calm crowd a few hundredths apart,
+            // solved in every pass for nothing (the crowds ran 3 times slower awake); the
+            // gap for every pair let rains sink a quarter of a size into each other within
+            // a step, and struck circles of elastic gases overlap 2.7 times deeper
+            // (docs/engine.md, "How near a pair becomes a contact").
             let accelerated = gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO;
+            let restitution = a.restitution.min(b.restitution).max(0.0);
+            let moving = a.vel != DVec2::ZERO || b.vel != DVec2::ZERO;
+            let near = accelerated || (moving && restitution > 0.0);
+            let reach = if near { 0.1 } else { SPECULATIVE_GAP } * size;
             // How fast the pair may close: at its relative speed, or, under gravity, at
             // either body's own speed should the other be stopped within the frame (a box
             // of a falling column landing on a pile, the next box still falling onto it).
@@ -298,7 +305,6 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             if gap <= SPECULATIVE_GAP * size || (impact < 0.0 && gap <= -impact * frame_dt) {
                 found.touching += 1;
             }
-            let restitution = a.restitution.min(b.restitution).max(0.0);
             let bounce_speed = bounce_speed(accelerated, size);
             let bounces = restitution > 0.0 && impact < -bounce_speed;
             let slop = params.slop * size;

@@ -229,3 +229,50 @@ fn an_elastic_ball_that_meets_a_wall_within_the_step_bounces_where_it_meets() {
     assert!((bodies[1].vel.x + 6.0).abs() < 1e-9, "{}", bodies[1].vel);
     assert!((bodies[1].pos.x + 0.05).abs() < 1e-9, "{}", bodies[1].pos);
 }
+
+/// How many contacts one frame of two boxes 1 across, `gap` apart along x, both at `vel`,
+/// of restitution `restitution`, under `gravity`, solves.
+fn contacts_made(gap: f64, vel: DVec2, restitution: f64, gravity: DVec2) -> usize {
+    let mut bodies = vec![
+        Body {
+            restitution,
+            ..body(0, DVec2::ZERO, vel, 1.0)
+        },
+        Body {
+            restitution,
+            ..body(1, DVec2::new(1.0 + gap, 0.0), vel, 1.0)
+        },
+    ];
+    let mut contacts = Contacts::default();
+    contacts.refill(&mut vec![(0, 1)], &mut Vec::new());
+    let mut buffers = SolverBuffers::default();
+    solve_frame(
+        &mut bodies,
+        &mut contacts.pairs,
+        params(),
+        &mut buffers,
+        &[0, 1],
+        |_| gravity,
+        &mut Vec::new(),
+    );
+    buffers.last_contacts
+}
+
+/// A pair that nothing pulls and that cannot bounce (still, or without restitution)
+/// becomes a contact only within the gap a resting contact holds: two still boxes 5% of
+/// a size apart cost the passes nothing. Moving with restitution, or under gravity, the
+/// same pair is a contact within a tenth of its size (a body struck or turned back within
+/// the step may meet it at any speed); 15% apart and closing at nothing, it is none.
+/// (Two bodies moving together close at nothing: only gravity counts their own speed.)
+#[test]
+fn a_pair_a_few_hundredths_apart_is_a_contact_only_if_it_may_bounce_or_fall() {
+    let (still, along) = (DVec2::ZERO, DVec2::new(0.0, 3.0));
+    let down = DVec2::new(0.0, -9.8);
+    assert_eq!(contacts_made(0.05, still, 0.5, DVec2::ZERO), 0);
+    assert_eq!(contacts_made(0.05, along, 0.0, DVec2::ZERO), 0);
+    assert_eq!(contacts_made(0.05, along, 0.5, DVec2::ZERO), 1);
+    assert_eq!(contacts_made(0.05, still, 0.0, down), 1);
+    assert_eq!(contacts_made(0.01, still, 0.0, DVec2::ZERO), 1);
+    assert_eq!(contacts_made(0.15, along, 0.5, DVec2::ZERO), 0);
+    assert_eq!(contacts_made(0.15, still, 0.5, down), 0);
+}
