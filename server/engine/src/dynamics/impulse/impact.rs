@@ -105,6 +105,11 @@ impl Sweep {
         gain: &[DVec2],
         h: f64,
     ) {
+        // Only a body nothing pulls starts a cluster: where gravity pulls every body (a
+        // pile, a rain), one look at their gains, not at every contact.
+        if gain.iter().all(|g| *g != DVec2::ZERO) {
+            return;
+        }
         // The heavy bodies that start clusters, in the order of the contacts (so the bits
         // depend on nothing else). Most sub-steps have none: one look at each contact,
         // and the per-body marks are laid out only once one is found.
