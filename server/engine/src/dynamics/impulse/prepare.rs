@@ -262,9 +262,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             // a step, and struck circles of elastic gases overlap 2.7 times deeper
             // (docs/engine.md, "How near a pair becomes a contact").
             let accelerated = gains(a) != DVec2::ZERO || gains(b) != DVec2::ZERO;
-            let restitution = a.restitution.min(b.restitution).max(0.0);
             let moving = a.vel != DVec2::ZERO || b.vel != DVec2::ZERO;
-            let near = accelerated || (moving && restitution > 0.0);
+            let near = accelerated || (moving && a.restitution > 0.0 && b.restitution > 0.0);
             let reach = if near { 0.1 } else { SPECULATIVE_GAP } * size;
             // How fast the pair may close: at its relative speed, or, under gravity, at
             // either body's own speed should the other be stopped within the frame (a box
@@ -305,6 +304,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             if gap <= SPECULATIVE_GAP * size || (impact < 0.0 && gap <= -impact * frame_dt) {
                 found.touching += 1;
             }
+            let restitution = a.restitution.min(b.restitution).max(0.0);
             let bounce_speed = bounce_speed(accelerated, size);
             let bounces = restitution > 0.0 && impact < -bounce_speed;
             let slop = params.slop * size;
