@@ -409,6 +409,43 @@ fn without_gravity_a_block_at_rest_sleeps_and_a_slow_pair_drifts_on() {
     assert!(x > 21.0 + 0.015 * 2.0 * 0.9, "the pair moved on: {x}");
 }
 
+/// A body at rest sleeps after `sleep_delay` seconds, counted in whole steps: the rest
+/// it sums a step at a time is not a step short by rounding (thirty steps of 1/60 s sum
+/// to 0.49999999999999994 s, and the box waited a 31st).
+#[test]
+fn a_body_at_rest_sleeps_after_its_delay_to_the_step() {
+    for (dt, delay, steps) in [
+        (1.0 / 60.0, 0.5, 30),
+        (1.0 / 60.0, 0.25, 15),
+        (1.0 / 120.0, 0.5, 60),
+        (1.0 / 30.0, 1.0, 30),
+        (1.0 / 240.0, 0.1, 24),
+    ] {
+        let text = format!(
+            "[world]\ngravity = [0.0, -10.0]\ndt = {dt:?}\nsleep_delay = {delay:?}\n\n\
+             [[body]]\nid = \"ground\"\ngroup = \"ground\"\nshape = \"rect\"\n\
+             size = [10.0, 1.0]\npos = [0.0, -0.5]\nmass = 0.0\n\n\
+             [[body]]\nid = \"box\"\ngroup = \"boxes\"\nshape = \"rect\"\n\
+             size = [1.0, 1.0]\npos = [0.0, 0.5]\nrestitution = 0.0\n\n\
+             [[interact]]\na = \"boxes\"\nb = \"ground\"\n"
+        );
+        let mut w =
+            scene::parse(&text, Path::new("rest.toml"), &[]).unwrap_or_else(|e| panic!("{e}"));
+        w.step_n(steps - 1);
+        assert_eq!(
+            w.stats().sleeping,
+            0,
+            "dt {dt}, delay {delay}: asleep before {steps} steps"
+        );
+        w.step();
+        assert_eq!(
+            w.stats().sleeping,
+            1,
+            "dt {dt}, delay {delay}: awake after {steps} steps"
+        );
+    }
+}
+
 #[test]
 fn without_sleeping_nothing_sleeps() {
     let settings: Vec<&str> = STABLE.iter().copied().chain(["sleeping=false"]).collect();

@@ -102,9 +102,17 @@ pub fn rest(
         } else {
             0.0
         };
-        islands_matter |= b.rest_time >= delay;
+        islands_matter |= rested(b.rest_time, delay, dt);
     }
     islands_matter
+}
+
+/// Whether a body at rest for `rest_time`, summed a step `dt` at a time, has rested
+/// `delay`: to within a millionth of a step, what the sum loses to rounding. Compared
+/// exactly, thirty steps of 1/60 s summed to 0.49999999999999994 s, and every island
+/// meant to sleep after half a second stayed awake a 31st step.
+fn rested(rest_time: f64, delay: f64, dt: f64) -> bool {
+    rest_time >= delay - 1e-6 * dt
 }
 
 /// Whether two bodies touch, for the islands: apart by at most 2% of the smaller one.
@@ -139,12 +147,13 @@ pub fn islands(
     accelerated: impl Fn(&Body) -> bool,
     speed: f64,
     delay: f64,
+    dt: f64,
 ) -> u64 {
     let mut parent: Vec<u32> = (0..bodies.len() as u32).collect();
     // A body awake that has not rested long enough keeps its island awake. Joining two such
     // bodies changes no island's fate (both islands are restless already), so their pair
     // is not looked at: in a pile being pushed apart, most pairs.
-    let restless = |b: &Body| b.asleep.is_none() && b.rest_time < delay;
+    let restless = |b: &Body| b.asleep.is_none() && !rested(b.rest_time, delay, dt);
     for (i, j) in pairs.clone() {
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
         if a.is_static() || b.is_static() || (restless(a) && restless(b)) || !touching(a, b) {

@@ -238,6 +238,7 @@ impl World {
             accelerated,
             speed,
             delay,
+            dt,
         );
         self.sleeping
     }
