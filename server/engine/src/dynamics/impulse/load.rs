@@ -41,8 +41,11 @@ pub(super) fn rest(
         }
     }
     // Every supporting contact, by the body it holds up: (upper, lower, bucket, index,
-    // share of the upper body's width it carries, cosine of its normal to up).
-    let mut supports: Vec<(u32, u32, u32, u32, f64, f64)> = Vec::new();
+    // share of the upper body's width it carries, cosine of its normal to up), then
+    // placed by upper body (in the order found: a count, then a place for each).
+    let n = sb.len();
+    let mut count = vec![0u32; n + 1];
+    let mut found: Vec<(u32, u32, u32, u32, f64, f64)> = Vec::new();
     for (k, bucket) in contacts.iter().enumerate() {
         for (i, c) in bucket.iter().enumerate() {
             if c.speculative {
@@ -64,19 +67,35 @@ pub(super) fn rest(
                 &bodies[slotted[lower as usize] as usize],
             );
             let width = shared_width(u, l, up);
-            supports.push((upper, lower, k as u32, i as u32, width, cos.abs()));
+            count[upper as usize + 1] += 1;
+            found.push((upper, lower, k as u32, i as u32, width, cos.abs()));
         }
     }
-    supports.sort_unstable_by_key(|s| s.0);
+    // `count[s]..count[s + 1]`: where the supports of body `s` go.
+    for s in 0..n {
+        count[s + 1] += count[s];
+    }
+    let mut supports = found.clone();
+    let mut at = count.clone();
+    for t in &found {
+        supports[at[t.0 as usize] as usize] = *t;
+        at[t.0 as usize] += 1;
+    }
     // The bodies that stand on something, highest first (ties in slot order).
-    let height = |s: u32| bodies[slotted[s as usize] as usize].pos.dot(up);
-    let mut order: Vec<u32> = supports.iter().map(|s| s.0).collect();
-    order.dedup();
-    order.sort_by(|&x, &y| height(y).total_cmp(&height(x)).then(x.cmp(&y)));
+    let height: Vec<f64> = slotted
+        .iter()
+        .map(|&i| bodies[i as usize].pos.dot(up))
+        .collect();
+    let mut order: Vec<u32> = (0..n as u32)
+        .filter(|&s| count[s as usize + 1] > count[s as usize])
+        .collect();
+    order.sort_unstable_by(|&x, &y| {
+        height[y as usize]
+            .total_cmp(&height[x as usize])
+            .then(x.cmp(&y))
+    });
     for s in order {
-        let first = supports.partition_point(|t| t.0 < s);
-        let end = supports.partition_point(|t| t.0 <= s);
-        let held = &supports[first..end];
+        let held = &supports[count[s as usize] as usize..count[s as usize + 1] as usize];
         let total: f64 = held.iter().map(|t| t.4).sum();
         let carried = load[s as usize];
         if carried <= 0.0 {

@@ -64,8 +64,7 @@ struct Record {
 /// do not depend on it.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Sweep {
-    /// The supporting contacts as found, then in the order the sweep visits them.
-    found: Vec<Record>,
+    /// The supporting contacts in the order the sweep visits them.
     records: Vec<Record>,
     /// Per solver body: how many contacts hold it up, then where its first goes.
     count: Vec<u32>,
@@ -88,40 +87,34 @@ impl Sweep {
         let n = sb.len();
         self.count.clear();
         self.count.resize(n, 0);
-        self.found.clear();
-        for c in buckets.iter().flatten() {
+        // The contact's upper and lower body and its normal from the lower to the upper,
+        // if it holds a dynamic body up.
+        let support = |c: &Contact| {
             let cos = c.normal.dot(up);
             let (upper, lower, normal) = if cos > SWEEP_COS {
                 (c.b, c.a, c.normal)
             } else if cos < -SWEEP_COS {
                 (c.a, c.b, -c.normal)
             } else {
-                continue;
+                return None;
             };
-            if sb[upper as usize].inv_mass == 0.0 {
-                continue;
+            (sb[upper as usize].inv_mass != 0.0).then_some((upper, lower, normal, cos.abs()))
+        };
+        // How many contacts hold each body up.
+        for c in buckets.iter().flatten() {
+            if let Some((upper, ..)) = support(c) {
+                self.count[upper as usize] += 1;
             }
-            self.count[upper as usize] += 1;
-            self.found.push(Record {
-                upper,
-                lower,
-                normal,
-                cos: cos.abs(),
-                gap: c.gap,
-                slop: c.slop,
-                max_push: c.max_push,
-                body_push: super::body_push_out(&bodies[slotted[upper as usize] as usize]),
-                speculative: c.speculative,
-                fixed: c.fixed,
-            });
         }
         // The bodies that stand on something, by height: last frame's order kept where
         // it still holds, bodies newly standing after it, then sorted (a stable sort that
-        // finds the runs already in order).
+        // finds the runs already in order; on a first frame, with no order to keep, an
+        // unstable one: every key differs, so either gives the same order).
         self.heights.clear();
         self.heights
             .extend(slotted.iter().map(|&i| bodies[i as usize].pos.dot(up)));
         let count = &mut self.count;
+        let fresh = self.order.is_empty();
         self.order
             .retain(|&s| (s as usize) < n && count[s as usize] > 0);
         // Marked (the top bit) while listed, so none is listed twice.
@@ -135,23 +128,54 @@ impl Sweep {
             }
         }
         let heights = &self.heights;
-        self.order.sort_by(|&x, &y| {
+        let by_height = |&x: &u32, &y: &u32| {
             heights[x as usize]
                 .total_cmp(&heights[y as usize])
                 .then(x.cmp(&y))
-        });
-        // Where each body's contacts go, then placed there (in the order found).
+        };
+        if fresh {
+            self.order.sort_unstable_by(by_height);
+        } else {
+            self.order.sort_by(by_height);
+        }
+        // Where each body's contacts go, then each placed there, in the order found.
         let mut at = 0;
         for &s in &self.order {
             let k = count[s as usize] & !LISTED;
             count[s as usize] = at;
             at += k;
         }
+        let blank = Record {
+            upper: 0,
+            lower: 0,
+            normal: DVec2::ZERO,
+            cos: 0.0,
+            gap: 0.0,
+            slop: 0.0,
+            max_push: 0.0,
+            body_push: 0.0,
+            speculative: false,
+            fixed: false,
+        };
         self.records.clear();
-        self.records.extend_from_slice(&self.found);
-        for r in &self.found {
-            let place = &mut count[r.upper as usize];
-            self.records[*place as usize] = *r;
+        self.records.resize(at as usize, blank);
+        for c in buckets.iter().flatten() {
+            let Some((upper, lower, normal, cos)) = support(c) else {
+                continue;
+            };
+            let place = &mut count[upper as usize];
+            self.records[*place as usize] = Record {
+                upper,
+                lower,
+                normal,
+                cos,
+                gap: c.gap,
+                slop: c.slop,
+                max_push: c.max_push,
+                body_push: super::body_push_out(&bodies[slotted[upper as usize] as usize]),
+                speculative: c.speculative,
+                fixed: c.fixed,
+            };
             *place += 1;
         }
     }
