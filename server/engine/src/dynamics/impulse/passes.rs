@@ -491,6 +491,8 @@ pub(super) fn store(
     // the world's bodies, which are then visited once each.
     pushed.clear();
     pushed.resize(sb.len(), false);
+    // Whether any body of a contact sleeps (looked up per contact only then).
+    let sleepers = slotted.iter().any(|&i| bodies[i as usize].asleep.is_some());
     for c in buckets.iter().flatten() {
         let pair = &mut pairs[c.pair as usize];
         pair.normal = c.normal;
@@ -498,7 +500,7 @@ pub(super) fn store(
         // impulse its body will carry when it wakes. Warm-started with it, a grain a heavy
         // box landed on while it slept was launched at 400 u/s as it woke.
         let asleep = |k: u32| bodies[slotted[k as usize] as usize].asleep.is_some();
-        let (jn, jt, jp) = if asleep(c.a) || asleep(c.b) {
+        let (jn, jt, jp) = if sleepers && (asleep(c.a) || asleep(c.b)) {
             (0.0, 0.0, 0.0)
         } else {
             (c.normal_impulse, c.tangent_impulse, c.pseudo_impulse)
