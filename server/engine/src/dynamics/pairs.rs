@@ -28,7 +28,12 @@
 //! boxes); most worlds keep the frame at rest. In a moving frame the static bodies move
 //! too, and are looked at every step. Under gravity a body may also be stopped within a
 //! step by a third one (a falling box landing on a pile, its neighbour still falling), so
-//! the box of a body gravity pulls is swept back to where it would stop as well.
+//! the box of a body gravity pulls is swept back to where it would stop as well. A rain
+//! falls freely, gaining speed every step, and would leave a frame of fixed velocity
+//! behind within a few steps: when the median velocity has gained what gravity gives since
+//! the frame was chosen, the frame falls too (`PairSet::falls`), as the solver's sub-steps
+//! move a body, and each box is swept over what its body's acceleration and the frame's
+//! may differ by.
 //!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
 //! is deterministic: the pairs are exactly the eligible pairs whose fat boxes overlap,
@@ -180,6 +185,10 @@ pub struct PairSet {
     searching: Vec<bool>,
     /// Bodies re-inserted over the set's life (a figure for tests and benchmarks).
     pub reinserted: u64,
+    /// Bodies placed by a search of every body (a rebuild, or a new frame), over the
+    /// set's life (a figure for tests and benchmarks).
+    #[serde(default)]
+    pub placed_whole: u64,
     /// The velocity of the frame the fat boxes are kept in (see the module's notes).
     #[serde(default)]
     frame_velocity: DVec2,
@@ -205,6 +214,23 @@ pub struct PairSet {
     /// within a step (see [`PairSet::place`]).
     #[serde(skip)]
     gravity: DVec2,
+    /// Whether a body's acceleration is its gravity (not scaled by its inverse mass, the
+    /// chapter's rule): only then may the frame fall (see [`PairSet::falls`]).
+    #[serde(skip)]
+    plain_gravity: bool,
+    /// The share of a step's gain in velocity a body gravity pulls moves by within the
+    /// step: `(n + 1) / (2 n)` under symplectic Euler in `n` sub-steps (a falling frame
+    /// falls so, and a body of a rain stays where it is in it).
+    #[serde(skip)]
+    fall_share: f64,
+    /// Whether the frame falls: its velocity gains `gravity` as the bodies' do, so a rain
+    /// in free fall stays at rest in it (see the module's notes).
+    #[serde(default)]
+    falls: bool,
+    /// How long since the frame was chosen: the median velocity then followed free fall
+    /// if it gained `gravity` times this.
+    #[serde(default)]
+    since: f64,
 }
 
 /// How much a body's box swept along its travel during a step of `dt` (in a frame moving
@@ -294,7 +320,17 @@ fn overlap(p: &Fat, q: &Fat) -> bool {
 impl PairSet {
     /// The world's gravity, for the updates that follow.
     pub fn set_gravity(&mut self, gravity: DVec2) {
+        self.set_acceleration(gravity, false, 1);
+    }
+
+    /// The world's gravity, whether a body's acceleration is scaled by its inverse mass
+    /// (then the frame never falls) and the solver's sub-steps a step, for the updates
+    /// that follow.
+    pub fn set_acceleration(&mut self, gravity: DVec2, mass_scaled: bool, substeps: u32) {
         self.gravity = gravity;
+        self.plain_gravity = !mass_scaled;
+        let n = f64::from(substeps.max(1));
+        self.fall_share = (n + 1.0) / (2.0 * n);
     }
 
     /// The bodies moved for `dt` since the last update (the world calls it after each
@@ -325,9 +361,15 @@ impl PairSet {
             self.reindex();
         }
         self.shift += self.frame_velocity * self.elapsed;
+        if self.falls {
+            // In free fall: `gravity` over the time the bodies moved, exactly.
+            self.shift += self.fall_share * self.gravity * self.elapsed * self.elapsed;
+            self.frame_velocity += self.gravity * self.elapsed;
+        }
+        self.since += self.elapsed;
         self.elapsed = 0.0;
         self.moved.clear();
-        let still = self.frame_velocity == DVec2::ZERO;
+        let still = self.frame_velocity == DVec2::ZERO && !self.falls;
         let statics = std::mem::take(&mut self.statics);
         for &i in movers
             .iter()
@@ -340,12 +382,7 @@ impl PairSet {
             }
             let r = reach(body, self.frame_velocity, dt);
             let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
-            let (min, max) = swept_either(
-                min,
-                max,
-                (velocity(body) - self.frame_velocity) * dt,
-                stop(body, self.gravity, self.frame_velocity, dt),
-            );
+            let (min, max) = self.swept(body, min, max, 1.0, dt);
             if min.x - r >= f.min.x
                 && min.y - r >= f.min.y
                 && max.x + r <= f.max.x
@@ -369,8 +406,10 @@ impl PairSet {
         }
         if self.moved.len() * 4 >= self.in_play {
             if let Some(frame) = self.better_frame(bodies) {
+                self.falls = self.free_fall(frame);
                 self.frame_velocity = frame;
                 self.shift = DVec2::ZERO;
+                self.since = 0.0;
                 self.search_all(pairs, bodies, dt);
                 return;
             }
@@ -410,7 +449,10 @@ impl PairSet {
                 ),
             );
         }
-        if !(self.frame_velocity.is_finite() && self.shift.is_finite() && self.elapsed.is_finite())
+        if !(self.frame_velocity.is_finite()
+            && self.shift.is_finite()
+            && self.elapsed.is_finite()
+            && self.since.is_finite())
         {
             return bad(
                 "frame_velocity",
@@ -537,8 +579,10 @@ impl PairSet {
             (0..bodies.len() as u32).filter(|&i| play[i as usize] && fixed(&bodies[i as usize])),
         );
         self.frame_velocity = DVec2::ZERO;
+        self.falls = false;
         self.frame_velocity = self.better_frame(bodies).unwrap_or(DVec2::ZERO);
         self.shift = DVec2::ZERO;
+        self.since = 0.0;
         pairs.clear();
         self.search_all(pairs, bodies, dt);
         if !old.is_empty() {
@@ -549,6 +593,63 @@ impl PairSet {
                 }
             }
         }
+    }
+
+    /// A body's box `min..max` (in the frame) swept along where the body may be over the
+    /// next `k` steps of `dt`: at its velocity, or, under gravity, stopped dead (by a
+    /// third body) while its neighbour goes on ([`stop`]). In a falling frame, what its
+    /// acceleration and the frame's differ by moves it too. The frame falls as the
+    /// solver's sub-steps move a body gravity pulls ([`PairSet::fall_share`]); a body's own
+    /// sub-steps may move it by anything from exact free fall (half its gain times the
+    /// time squared, the `exact` integrator) to the whole of it, so a body gravity pulls
+    /// is swept over that range, one it does not pull is left behind by the frame's fall,
+    /// and one stopped dead by the frame's whole travel.
+    fn swept(&self, body: &Body, min: DVec2, max: DVec2, k: f64, dt: f64) -> (DVec2, DVec2) {
+        let d = (velocity(body) - self.frame_velocity) * k * dt;
+        if !self.falls {
+            return swept_either(
+                min,
+                max,
+                d,
+                stop(body, self.gravity, self.frame_velocity, k * dt),
+            );
+        }
+        // Over `k` steps a body gaining `a` a second moves `a dt^2` times this beside its
+        // velocity, `c` its share of a step's gain (the velocity gains it step by step).
+        let gain = |a: DVec2, c: f64| a * dt * dt * (k * c + k * (k - 1.0) / 2.0);
+        let fall = gain(self.gravity, self.fall_share);
+        let own = if fixed(body) {
+            DVec2::ZERO
+        } else {
+            acceleration_under(body, self.gravity, false)
+        };
+        let (lo, hi) = (d + gain(own, 0.5) - fall, d + gain(own, 1.0) - fall);
+        let stopped = if pulled(body, self.gravity) {
+            -self.frame_velocity * k * dt - fall
+        } else {
+            lo
+        };
+        let low = lo.min(hi).min(stopped).min(DVec2::ZERO);
+        let high = lo.max(hi).max(stopped).max(DVec2::ZERO);
+        (min + low, max + high)
+    }
+
+    /// Whether a frame moving at `frame`, the median velocity now, should fall: under
+    /// plain gravity, when that median gained what gravity gives since the frame was
+    /// chosen (within a quarter): the bodies fall freely, as a rain does, and a frame that
+    /// falls with them keeps every box where it is until they land. A frame that does not
+    /// fall left a rain's boxes behind every few steps and placed every body again (a rain
+    /// of 3 700 spent a third of its first second in the broad phase).
+    fn free_fall(&self, frame: DVec2) -> bool {
+        if !self.plain_gravity || self.gravity == DVec2::ZERO || self.since <= 0.0 {
+            return false;
+        }
+        let expected = if self.falls {
+            self.frame_velocity
+        } else {
+            self.frame_velocity + self.gravity * self.since
+        };
+        (frame - expected).length() <= 0.25 * self.gravity.length() * self.since
     }
 
     /// The median velocity of the placed bodies (those static for good at rest), when the
@@ -584,6 +685,7 @@ impl PairSet {
     /// pairs found again keep their impulses.
     fn search_all(&mut self, pairs: &mut Vec<Pair>, bodies: &[Body], dt: f64) {
         self.elapsed = 0.0;
+        self.placed_whole += self.in_play as u64;
         for i in 0..self.fat.len() as u32 {
             if self.fat[i as usize].placed {
                 self.place(bodies, i, dt);
@@ -616,12 +718,7 @@ impl PairSet {
         } else {
             steps * travel * dt * SIDEWAYS + 0.25 * body.shape.half_extents().max_element()
         };
-        let (min, max) = swept_either(
-            min,
-            max,
-            steps * (velocity(body) - self.frame_velocity) * dt,
-            stop(body, self.gravity, self.frame_velocity, steps * dt),
-        );
+        let (min, max) = self.swept(body, min, max, steps, dt);
         let (min, max) = (min - m, max + m);
         self.fat[i as usize] = Fat {
             min,

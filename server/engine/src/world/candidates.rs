@@ -132,7 +132,11 @@ impl World {
         let mut resolving = std::mem::take(&mut self.scratch.resolving);
         resolving.clear();
         resolving.extend(self.resolving_pairs());
-        self.pair_set.set_gravity(self.config.gravity);
+        self.pair_set.set_acceleration(
+            self.config.gravity,
+            self.config.mass_scaled_acceleration,
+            self.config.substeps,
+        );
         self.pair_set.update(
             &mut self.contacts,
             &self.bodies,
