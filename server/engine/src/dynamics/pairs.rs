@@ -362,7 +362,7 @@ impl PairSet {
         }
         self.shift += self.frame_velocity * self.elapsed;
         if self.falls {
-            // In free fall: `gravity` over the time the bodies moved, exactly.
+            // Falling over the time the bodies moved as their sub-steps move them.
             self.shift += self.fall_share * self.gravity * self.elapsed * self.elapsed;
             self.frame_velocity += self.gravity * self.elapsed;
         }
@@ -618,10 +618,12 @@ impl PairSet {
         // velocity, `c` its share of a step's gain (the velocity gains it step by step).
         let gain = |a: DVec2, c: f64| a * dt * dt * (k * c + k * (k - 1.0) / 2.0);
         let fall = gain(self.gravity, self.fall_share);
-        let own = if fixed(body) {
-            DVec2::ZERO
-        } else {
+        // What the body gains this step: nothing if it is static to the step (a static
+        // body, or a sleeper frozen for it, which the frame falls away from).
+        let own = if body.inv_mass > 0.0 {
             acceleration_under(body, self.gravity, false)
+        } else {
+            DVec2::ZERO
         };
         let (lo, hi) = (d + gain(own, 0.5) - fall, d + gain(own, 1.0) - fall);
         let stopped = if pulled(body, self.gravity) {
