@@ -46,9 +46,9 @@ use glam::DVec2;
 
 use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
-use super::integrate::acceleration_under;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
+use frame::{fixed, reach, swept_steps, velocity, SIDEWAYS};
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -231,79 +231,6 @@ pub struct PairSet {
     /// if it gained `gravity` times this.
     #[serde(default)]
     since: f64,
-}
-
-/// How much a body's box swept along its travel during a step of `dt` (in a frame moving
-/// at `frame`) is grown every way: a share of that travel and a tenth of its size. That
-/// box must stay inside its fat box.
-fn reach(body: &Body, frame: DVec2, dt: f64) -> f64 {
-    (velocity(body) - frame).length() * dt * SIDEWAYS
-        + 0.1 * body.shape.half_extents().max_element()
-}
-
-/// How much of a body's travel its box is grown by every way, beside being swept along it:
-/// room for a body turned aside within the step (by a bounce the collision stage resolves).
-/// With none, a thrown crowd runs 10% faster and the impacts family holds 96 seeds of 100
-/// instead of 97; with all of it (a box grown by its travel every way, as before the sweep),
-/// a body's box meets every neighbour it could reach in any direction.
-const SIDEWAYS: f64 = 0.25;
-
-/// How many steps of its travel a body's fat box is swept along: two for a body gravity
-/// pulls (its path curves), four for one nothing accelerates, which flies straight until
-/// it meets something. A spray of bodies flying apart then moves a body in the index
-/// about every fifth step instead of every other one: the suite's smash, awake, spent
-/// 65 us a step in the broad phase instead of 114, the elastic family's mean step fell
-/// by a third and the impacts' by 8%; under gravity the longer boxes made the rains 4%
-/// slower (more pairs than moves saved). The pairs are still exactly the eligible pairs
-/// whose boxes overlap; every digest, and 110 generated scenes, ran to the same bits.
-const SWEPT_STEPS: f64 = 2.0;
-const SWEPT_STEPS_FREE: f64 = 4.0;
-
-fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
-    if pulled(body, gravity) {
-        SWEPT_STEPS
-    } else {
-        SWEPT_STEPS_FREE
-    }
-}
-
-/// A box swept by `d` and by `e`: the box, the box moved by either, and all between.
-fn swept_either(min: DVec2, max: DVec2, d: DVec2, e: DVec2) -> (DVec2, DVec2) {
-    (
-        min + d.min(e).min(DVec2::ZERO),
-        max + d.max(e).max(DVec2::ZERO),
-    )
-}
-
-/// Where a body would be, against where it is, had it stopped dead within a step of `dt`
-/// in a frame moving at `frame`: a body gravity accelerates may land on something within
-/// the step (a box of a falling column on the pile) while its neighbour goes on. Without
-/// gravity, none (a crowd thrown together keeps no pairs for it).
-fn stop(body: &Body, gravity: DVec2, frame: DVec2, dt: f64) -> DVec2 {
-    if pulled(body, gravity) {
-        -frame * dt
-    } else {
-        DVec2::ZERO
-    }
-}
-
-/// Whether `gravity` accelerates `body` (a dynamic body it pulls).
-fn pulled(body: &Body, gravity: DVec2) -> bool {
-    body.inv_mass > 0.0 && acceleration_under(body, gravity, false) != DVec2::ZERO
-}
-
-/// A body's velocity as the set sees it (a body static for good has none).
-fn velocity(body: &Body) -> DVec2 {
-    if fixed(body) {
-        DVec2::ZERO
-    } else {
-        body.vel
-    }
-}
-
-/// A body that is static for good (a sleeper is only frozen for the step).
-fn fixed(body: &Body) -> bool {
-    body.is_static() && body.asleep.is_none()
 }
 
 /// Whether bodies `i` and `j` make a candidate pair: two bodies, not both static for
@@ -595,94 +522,6 @@ impl PairSet {
         }
     }
 
-    /// A body's box `min..max` (in the frame) swept along where the body may be over the
-    /// next `k` steps of `dt`: at its velocity, or, under gravity, stopped dead (by a
-    /// third body) while its neighbour goes on ([`stop`]). In a falling frame, what its
-    /// acceleration and the frame's differ by moves it too. The frame falls as the
-    /// solver's sub-steps move a body gravity pulls ([`PairSet::fall_share`]); a body's own
-    /// sub-steps may move it by anything from exact free fall (half its gain times the
-    /// time squared, the `exact` integrator) to the whole of it, so a body gravity pulls
-    /// is swept over that range, one it does not pull is left behind by the frame's fall,
-    /// and one stopped dead by the frame's whole travel.
-    fn swept(&self, body: &Body, min: DVec2, max: DVec2, k: f64, dt: f64) -> (DVec2, DVec2) {
-        let d = (velocity(body) - self.frame_velocity) * k * dt;
-        if !self.falls {
-            return swept_either(
-                min,
-                max,
-                d,
-                stop(body, self.gravity, self.frame_velocity, k * dt),
-            );
-        }
-        // Over `k` steps a body gaining `a` a second moves `a dt^2` times this beside its
-        // velocity, `c` its share of a step's gain (the velocity gains it step by step).
-        let gain = |a: DVec2, c: f64| a * dt * dt * (k * c + k * (k - 1.0) / 2.0);
-        let fall = gain(self.gravity, self.fall_share);
-        // What the body gains this step: nothing if it is static to the step (a static
-        // body, or a sleeper frozen for it, which the frame falls away from).
-        let own = if body.inv_mass > 0.0 {
-            acceleration_under(body, self.gravity, false)
-        } else {
-            DVec2::ZERO
-        };
-        let (lo, hi) = (d + gain(own, 0.5) - fall, d + gain(own, 1.0) - fall);
-        let stopped = if pulled(body, self.gravity) {
-            -self.frame_velocity * k * dt - fall
-        } else {
-            lo
-        };
-        let low = lo.min(hi).min(stopped).min(DVec2::ZERO);
-        let high = lo.max(hi).max(stopped).max(DVec2::ZERO);
-        (min + low, max + high)
-    }
-
-    /// Whether a frame moving at `frame`, the median velocity now, should fall: under
-    /// plain gravity, when that median gained what gravity gives since the frame was
-    /// chosen (within a quarter): the bodies fall freely, as a rain does, and a frame that
-    /// falls with them keeps every box where it is until they land. A frame that does not
-    /// fall left a rain's boxes behind every few steps and placed every body again (a rain
-    /// of 3 700 spent a third of its first second in the broad phase).
-    fn free_fall(&self, frame: DVec2) -> bool {
-        if !self.plain_gravity || self.gravity == DVec2::ZERO || self.since <= 0.0 {
-            return false;
-        }
-        let expected = if self.falls {
-            self.frame_velocity
-        } else {
-            self.frame_velocity + self.gravity * self.since
-        };
-        (frame - expected).length() <= 0.25 * self.gravity.length() * self.since
-    }
-
-    /// The median velocity of the placed bodies (those static for good at rest), when the
-    /// travel summed over them in a frame moving at it is at most half what it is in the
-    /// set's frame now; else none.
-    fn better_frame(&mut self, bodies: &[Body]) -> Option<DVec2> {
-        let placed = || {
-            self.fat
-                .iter()
-                .zip(bodies)
-                .filter(|(f, _)| f.placed)
-                .map(|(_, b)| velocity(b))
-        };
-        let travel = |frame: DVec2| placed().map(|v| (v - frame).length()).sum::<f64>();
-        let now = travel(self.frame_velocity);
-        if now.is_nan() || now <= 0.0 {
-            return None;
-        }
-        let mut median = [0.0; 2];
-        for (axis, m) in median.iter_mut().enumerate() {
-            let mut speeds = std::mem::take(&mut self.speeds);
-            speeds.clear();
-            speeds.extend(placed().map(|v| v[axis]));
-            let half = speeds.len() / 2;
-            *m = *speeds.select_nth_unstable_by(half, f64::total_cmp).1;
-            self.speeds = speeds;
-        }
-        let frame = DVec2::from(median);
-        (frame.is_finite() && travel(frame) <= 0.5 * now).then_some(frame)
-    }
-
     /// Places every body in play again in the set's frame and finds all its pairs; the
     /// pairs found again keep their impulses.
     fn search_all(&mut self, pairs: &mut Vec<Pair>, bodies: &[Body], dt: f64) {
@@ -802,5 +641,6 @@ impl PairSet {
     }
 }
 
+mod frame;
 #[cfg(test)]
 mod tests;
