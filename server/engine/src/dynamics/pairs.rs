@@ -48,7 +48,7 @@ use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
-use frame::{fixed, reach, swept_steps, velocity, SIDEWAYS};
+use frame::{fixed, reach, swept_steps, velocity, SIDEWAYS, SIDEWAYS_STEPS};
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -549,15 +549,17 @@ impl PairSet {
     fn place(&mut self, bodies: &[Body], i: u32, dt: f64) {
         let body = &bodies[i as usize];
         let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
-        // Swept along a few steps of travel in the frame ([`SWEPT_STEPS`]), grown by a
-        // share of that travel and a quarter of the body's size (a body static for good
-        // in a frame at rest needs none).
+        // Swept along a few steps of travel in the frame ([`SWEPT_STEPS`]), grown every
+        // way by a share of the travel of those steps, two at most ([`SIDEWAYS_STEPS`]),
+        // and a quarter of the body's size (a body static for good in a frame at rest
+        // needs none).
         let steps = swept_steps(body, self.gravity);
         let travel = (velocity(body) - self.frame_velocity).length();
         let m = if fixed(body) && travel == 0.0 {
             0.0
         } else {
-            steps * travel * dt * SIDEWAYS + 0.25 * body.shape.half_extents().max_element()
+            steps.min(SIDEWAYS_STEPS) * travel * dt * SIDEWAYS
+                + 0.25 * body.shape.half_extents().max_element()
         };
         let (min, max) = self.swept(body, min, max, steps, dt);
         let (min, max) = (min - m, max + m);
