@@ -48,7 +48,7 @@ use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
-use frame::{fixed, reach, swept_steps, velocity, SIDEWAYS, SIDEWAYS_STEPS};
+use frame::{fixed, reach, sideways, swept_steps, velocity};
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -550,16 +550,14 @@ impl PairSet {
         let body = &bodies[i as usize];
         let Aabb { min, max } = Aabb::of(&body.shape, body.pos - self.shift);
         // Swept along a few steps of travel in the frame ([`SWEPT_STEPS`]), grown every
-        // way by a share of the travel of those steps, two at most ([`SIDEWAYS_STEPS`]),
-        // and a quarter of the body's size (a body static for good in a frame at rest
-        // needs none).
+        // way by a share of that travel ([`sideways`]) and a quarter of the body's size (a
+        // body static for good in a frame at rest needs none).
         let steps = swept_steps(body, self.gravity);
         let travel = (velocity(body) - self.frame_velocity).length();
         let m = if fixed(body) && travel == 0.0 {
             0.0
         } else {
-            steps.min(SIDEWAYS_STEPS) * travel * dt * SIDEWAYS
-                + 0.25 * body.shape.half_extents().max_element()
+            sideways(body, steps, travel * dt) + 0.25 * body.shape.half_extents().max_element()
         };
         let (min, max) = self.swept(body, min, max, steps, dt);
         let (min, max) = (min - m, max + m);

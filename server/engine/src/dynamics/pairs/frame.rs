@@ -42,19 +42,22 @@ pub(super) fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
     }
 }
 
-/// How many steps of its travel a body's box is grown by every way ([`SIDEWAYS`] of each):
-/// the two a body gravity pulls is swept along, also for a body swept along four. Such a
-/// body flies straight along its sweep; turned aside, it leaves its box and is placed
+/// How far a body's box swept along `steps` steps of its travel, `travel` a step, is grown
+/// every way beside: [`SIDEWAYS`] of the travel of those steps, but of no more than two of
+/// them where that is more than a quarter of the body's size. A body swept along four (one
+/// nothing accelerates) flies straight; turned aside, it leaves its box and is placed
 /// again, and one step's room is all that the check that it stays inside asks for
-/// ([`reach`]). Grown by all four steps every way, the fragments of a block struck apart
+/// ([`reach`]). Grown by four steps every way, the fast fragments of a block struck apart
 /// overlapped dozens of boxes each: impacts seed 5 (289 circles struck by one 174 times
-/// heavier at 88 u/s) held 12 200 pairs for its 290 bodies in the steps after the impact.
-/// With two steps' room it ran 14% faster over its run, the other impacts seeds within 4%
-/// either way; with one, 16% faster but the others up to 4% slower (struck bodies turn
-/// aside and are placed again). The pairs a body can meet within a step are in the set
-/// either way (the same bits on every shipped scene); the others only cost the contact
-/// search a look.
-pub(super) const SIDEWAYS_STEPS: f64 = SWEPT_STEPS;
+/// heavier at 88 u/s) held 12 200 pairs for its 290 bodies in the steps after the impact,
+/// 5 800 with two steps' room. Slow bodies turned aside often (a block struck at 15 u/s)
+/// keep the room of four: with two for every body, impacts seed 2 ran 6% slower, placed
+/// again more often. The pairs a body can meet within a step are in the set either way
+/// (the same bits on every shipped scene); the others only cost the contact search a look.
+pub(super) fn sideways(body: &Body, steps: f64, travel: f64) -> f64 {
+    let room = |steps: f64| steps * travel * SIDEWAYS;
+    room(steps).min(room(steps.min(2.0)).max(0.5 * body.shape.half_extents().max_element()))
+}
 
 /// A box swept by `d` and by `e`: the box, the box moved by either, and all between.
 pub(super) fn swept_either(min: DVec2, max: DVec2, d: DVec2, e: DVec2) -> (DVec2, DVec2) {

@@ -629,17 +629,18 @@ fn a_rain_in_free_fall_keeps_its_boxes_in_a_falling_frame() {
     );
 }
 
-/// A body nothing accelerates flies straight along its sweep of four steps: its box is
-/// grown every way by two steps' share of its travel, as a body gravity pulls (turned
-/// aside, it leaves its box and is placed again).
+/// A body nothing accelerates flies straight along its sweep of four steps: a fast one's
+/// box is grown every way by two steps' share of its travel, as a body gravity pulls
+/// (turned aside, it leaves its box and is placed again); a slow one's, whose four steps'
+/// share is less than a quarter of its size, by four.
 #[test]
-fn a_body_flying_straight_gets_two_steps_room_sideways() {
+fn a_fast_body_flying_straight_gets_two_steps_room_sideways() {
     let dt = 1.0 / 60.0;
-    let room = |gravity: DVec2, vel: DVec2| {
+    let room = |gravity: DVec2, speed: f64| {
         // Two bodies at rest far off keep the frame at rest (the median velocity).
         let bodies = vec![
             Body {
-                vel,
+                vel: DVec2::new(speed, 0.0),
                 ..body(0, 0.0, 0.0, 0.5, 0.5, 1.0, 0)
             },
             body(1, 500.0, 0.0, 0.5, 0.5, 1.0, 0),
@@ -649,21 +650,21 @@ fn a_body_flying_straight_gets_two_steps_room_sideways() {
         set.set_gravity(gravity);
         set.update(&mut contacts, &bodies, 1, &[(0, 0)], &[0, 1, 2], dt);
         assert_eq!(set.frame_velocity, DVec2::ZERO);
-        let f = set.fat[0];
-        // Behind the body (its sweep goes ahead), what it is grown by every way.
-        if vel.x > 0.0 {
-            -0.25 - f.min.x
-        } else {
-            -0.25 - f.min.y
-        }
+        // Behind the body (its sweep goes ahead): what it is grown by every way.
+        -0.25 - set.fat[0].min.x
     };
-    // A quarter of a step's travel (1 unit at 60 u/s) and a quarter of its half size.
-    let grown = |steps: f64| steps * 60.0 * dt * SIDEWAYS + 0.25 * 0.25;
-    let free = room(DVec2::ZERO, DVec2::new(60.0, 0.0));
-    assert!((free - grown(2.0)).abs() < 1e-9, "grown by {free}");
-    let pulled = room(DVec2::new(0.0, -10.0), DVec2::new(60.0, 0.0));
+    // A share of the travel of `steps` steps and a quarter of the half size.
+    let grown = |steps: f64, speed: f64| steps * speed * dt * frame::SIDEWAYS + 0.25 * 0.25;
+    let fast = room(DVec2::ZERO, 60.0);
+    assert!((fast - grown(2.0, 60.0)).abs() < 1e-9, "grown by {fast}");
+    let slow = room(DVec2::ZERO, 1.0);
     assert!(
-        (pulled - grown(2.0)).abs() < 1e-9,
+        (slow - grown(4.0, 1.0)).abs() < 1e-9,
+        "grown by {slow} at 1 u/s"
+    );
+    let pulled = room(DVec2::new(0.0, -10.0), 60.0);
+    assert!(
+        (pulled - grown(2.0, 60.0)).abs() < 1e-9,
         "grown by {pulled} under gravity"
     );
 }
