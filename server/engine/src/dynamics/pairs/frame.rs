@@ -49,10 +49,9 @@ pub(super) fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
 /// again, and one step's room is all that the check that it stays inside asks for
 /// ([`reach`]). Grown by four steps every way, the fast fragments of a block struck apart
 /// overlapped dozens of boxes each: impacts seed 5 (289 circles struck by one 174 times
-/// heavier at 88 u/s) held 12 200 pairs for its 290 bodies in the steps after the impact,
-/// 5 800 with two steps' room. Slow bodies turned aside often (a block struck at 15 u/s)
-/// keep the room of four: with two for every body, impacts seed 2 ran 6% slower, placed
-/// again more often. The pairs a body can meet within a step are in the set either way
+/// heavier at 88 u/s) held 12 200 pairs for its 290 bodies at the sixth step, 7 300 now.
+/// Slow bodies turned aside often (a block struck at 15 u/s) keep the room of four: with
+/// two for every body, impacts seed 2 ran about 5% slower, placed again more often. The pairs a body can meet within a step are in the set either way
 /// (the same bits on every shipped scene); the others only cost the contact search a look.
 pub(super) fn sideways(body: &Body, steps: f64, travel: f64) -> f64 {
     let room = |steps: f64| steps * travel * SIDEWAYS;
