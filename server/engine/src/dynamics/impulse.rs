@@ -201,6 +201,11 @@ struct Contact {
     pseudo_impulse: f64,
     /// Index of its pair.
     pair: u32,
+    /// The gap a speculative contact may close to (0: touching). A contact that held its
+    /// bodies last step and was lifted just past the gap a resting contact holds (by a
+    /// push-out that raised its upper body) may close back to that gap only
+    /// ([`prepare::DRIFT_BACK`]).
+    keep: f32,
     /// Found apart (beyond the slop): the bodies may close the gap, no more.
     speculative: bool,
     /// One of the two bodies is static (soft contacts are stiffer there).

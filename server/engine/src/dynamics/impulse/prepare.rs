@@ -22,6 +22,18 @@ use crate::geometry::separation;
 /// fade (all 300 held, 2 more than with none).
 pub(crate) const WARM_PUSH_SHARE: f64 = 0.5;
 
+/// A contact under gravity that held its bodies last step (a normal impulse), now apart by
+/// more than the gap a resting contact holds ([`SPECULATIVE_GAP`] of its size) but by no
+/// more than this many times it, was lifted there by a push-out (a grain squeezed between
+/// two neighbours a little lower than it rises as their pushes add up): it may close back
+/// to that gap only, a share of the way each sub-step ([`super::passes::closing`]), where a
+/// contact found apart closes to touching. Closing to touching, the body fell freely
+/// through the whole gap within a step, at three times `sleep_speed`, and the bed it was
+/// part of restarted its rest every 8 to 15 steps: under two heavy boxes, heavy-on-light
+/// seed 6 slept from frame 211, and from frame 78 now (docs/bench/engine-notes.md,
+/// "Heavy-on-light beds").
+pub(super) const DRIFT_BACK: f64 = 2.0;
+
 /// Fills `buffers` for the frame: the solver's bodies and what each mover gains per second
 /// (`gains`), the blocks, and the contacts of `pairs` (each pair's impulses taken: the solver
 /// leaves this frame's). Returns the touching contacts and the deepest penetration.
@@ -321,6 +333,15 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 && approach.abs() <= WARM_START_SPEED
                 && !bounces
                 && (accelerated || approach < 0.0);
+            // Held last step and lifted just past the gap a resting contact holds: back to
+            // that gap, not down to touching ([`DRIFT_BACK`]).
+            let band = SPECULATIVE_GAP * size;
+            let drifted = gap > band && gap <= DRIFT_BACK * band;
+            let keep = if accelerated && jn > 0.0 && !bounces && drifted {
+                band
+            } else {
+                0.0
+            };
             let (sa, sb) = (self.slot[i as usize], self.slot[j as usize]);
             let bucket = blocks::bucket_of(
                 sa,
@@ -368,6 +389,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 tangent_impulse: if warm { jt } else { 0.0 },
                 pseudo_impulse: jp,
                 pair: (first + k) as u32,
+                keep: keep as f32,
                 // A pair about to bounce may close its gap, however small: it bounces
                 // where it meets, not short of it.
                 speculative: gap > SPECULATIVE_GAP * size || (bounces && gap > 0.0),

@@ -54,6 +54,7 @@ struct Record {
     /// ([`super::body_push_out`]).
     body_push: f64,
     speculative: bool,
+    keep: f64,
     fixed: bool,
 }
 
@@ -155,6 +156,7 @@ impl Sweep {
             max_push: 0.0,
             body_push: 0.0,
             speculative: false,
+            keep: 0.0,
             fixed: false,
         };
         self.records.clear();
@@ -174,6 +176,7 @@ impl Sweep {
                 max_push: c.max_push,
                 body_push: super::body_push_out(&bodies[slotted[upper as usize] as usize]),
                 speculative: c.speculative,
+                keep: f64::from(c.keep),
                 fixed: c.fixed,
             };
             *place += 1;
@@ -190,7 +193,11 @@ impl Sweep {
             let (u, l) = (sb[upper], sb[lower]);
             let gap = r.gap + (u.delta - l.delta).dot(r.normal);
             let apart = r.speculative && gap > 0.0;
-            let target = if apart { -gap / h } else { 0.0 };
+            let target = if apart {
+                -super::passes::closing(gap, r.keep) / h
+            } else {
+                0.0
+            };
             let approach = (u.vel - l.vel).dot(r.normal);
             if approach < target {
                 // Straight up (against gravity), not along the normal: a circle on a
