@@ -522,11 +522,6 @@ pub(super) fn store(
     }
 }
 
-/// One contact's share of a velocity pass: the normal impulse that brings the normal
-/// velocity to its target (never pulling), then friction within the Coulomb cone. With
-/// `MEASURE`, returns the normal velocity change it made (0 otherwise).
-/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses.
-#[inline(always)]
 /// How far a contact found apart by `gap` may close within a sub-step: all of it, or, for
 /// one lifted just past the gap a resting contact holds (`keep` above 0,
 /// [`super::prepare::DRIFT_BACK`]), half of what it is past that gap.
@@ -544,6 +539,11 @@ pub(super) fn closing(gap: f64, keep: f64) -> f64 {
 /// heavy box (heavy-on-light seed 3187) never slept; a quarter let another (3288) creep.
 const DRIFT_BACK_SHARE: f64 = 0.5;
 
+/// One contact's share of a velocity pass: the normal impulse that brings the normal
+/// velocity to its target (never pulling), then friction within the Coulomb cone. With
+/// `MEASURE`, returns the normal velocity change it made (0 otherwise).
+/// `args`: the bias against dynamic and against static bodies, `1 / h`, split impulses.
+#[inline(always)]
 fn solve_contact<const MEASURE: bool>(
     sb: Bodies,
     c: &mut Contact,
