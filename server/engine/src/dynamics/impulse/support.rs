@@ -54,6 +54,7 @@ struct Record {
     /// ([`super::body_push_out`]).
     body_push: f64,
     speculative: bool,
+    /// The gap a contact found apart may close to (`passes::closing`).
     keep: f64,
     fixed: bool,
 }
