@@ -162,6 +162,9 @@ pub struct ImpulseParams {
     pub exact_sliding: Option<DVec2>,
     /// End each sub-step's passes with the impact sweep: see [`impact`].
     pub impact_propagation: bool,
+    /// Run a frame in which every body is still as push-out only ([`still`]): the bits
+    /// are those of the full passes, which `false` runs (to compare them).
+    pub still_frames: bool,
 }
 
 /// One body as the solver streams it.
@@ -524,19 +527,23 @@ pub fn solve_frame(
         // The change under which a pass has converged, in the units of the smallest
         // contact.
         let converged = CONVERGED_CHANGE * found.smallest;
+        // Every body still and nothing to move one: the passes only push out.
+        let still = params.still_frames && still::frame(&params, sb, gain, buckets);
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
             if params.exact_sliding.is_some() {
                 before.clear();
                 before.extend(sb.iter().map(|s| s.vel));
             }
-            passes::integrate_velocities(sb, gain, h);
+            if !still {
+                passes::integrate_velocities(sb, gain, h);
+            }
             clock.lap(times.as_mut().map(|t| &mut t.integrate_velocities));
-            if params.warm_starting || params.rest_load.is_some() || step > 0 {
+            if !still && (params.warm_starting || params.rest_load.is_some() || step > 0) {
                 passes::warm_start(team, sb, buckets);
             }
             clock.lap(times.as_mut().map(|t| &mut t.warm_start));
-            if found.bouncing {
+            if found.bouncing && !still {
                 let most = params.iterations + params.adaptive_iterations;
                 let flight = params.flight.gravity_share();
                 passes::collisions(sb, gain, buckets, met, h, most, flight, &mut report);
@@ -568,13 +575,14 @@ pub fn solve_frame(
                 converged,
                 last_step,
                 found.deep_fixed,
+                still,
                 gain,
                 &mut report,
             );
             if params.split_impulses {
                 passes::cap_push_out(sb, unpushed, push_cap);
             }
-            if params.impact_propagation {
+            if params.impact_propagation && !still {
                 impacts.sweep(sb, buckets, gain, h);
             }
             if let Some(up) = params.support {
@@ -589,7 +597,9 @@ pub fn solve_frame(
             clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());
             clock.lap(times.as_mut().map(|t| &mut t.integrate_positions));
-            passes::relax(team, sb, buckets, &params, h, last_step, &mut report);
+            if !still {
+                passes::relax(team, sb, buckets, &params, h, last_step, &mut report);
+            }
             clock.lap(times.as_mut().map(|t| &mut t.relax));
         }
     }
@@ -615,6 +625,7 @@ mod impact;
 mod load;
 mod passes;
 mod prepare;
+mod still;
 mod support;
 mod team;
 pub use blocks::{block_count, BLOCK_BODIES};

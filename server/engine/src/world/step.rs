@@ -531,6 +531,7 @@ impl World {
                 .then(|| (-config.gravity).try_normalize())
                 .flatten(),
             impact_propagation: config.impact_propagation,
+            still_frames: true,
             exact_sliding: config
                 .exact_sliding
                 .then(|| (-config.gravity).try_normalize())

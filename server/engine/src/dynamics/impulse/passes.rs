@@ -61,6 +61,7 @@ pub(super) fn warm_push(team: &Team, sb: &mut [SolverBody], buckets: &mut [Vec<C
 /// The biased passes: `iterations` of them, the position bias pushing touching contacts
 /// apart (into pseudo-velocities with split impulses), then up to `adaptive_iterations`
 /// more while the last one changed a contact's normal velocity by more than `converged`.
+/// In a still frame ([`super::still`]) each pass only pushes out.
 /// With `deep_fixed` (a contact with a static body overlaps beyond its slop), each pass is
 /// followed by the push-out of the contacts with static bodies ([`static_push_out`];
 /// `gain` is what each mover gains per second).
@@ -76,6 +77,7 @@ pub(super) fn solve(
     converged: f64,
     last_step: bool,
     deep_fixed: bool,
+    still: bool,
     gain: &[DVec2],
     report: &mut ImpulseReport,
 ) {
@@ -87,7 +89,12 @@ pub(super) fn solve(
         report.passes += 1;
         let args = (bias.push, bias.push_fixed, 1.0 / h, params.split_impulses);
         let measure = k + 1 >= params.iterations && (adaptive || residual);
-        let change = velocity_pass(team, sb, buckets, args, measure);
+        let change = if still {
+            super::still::push_pass(team, sb, buckets, bias.push.rate, bias.push_fixed.rate);
+            measure.then_some(0.0)
+        } else {
+            velocity_pass(team, sb, buckets, args, measure)
+        };
         if params.split_impulses && deep_fixed {
             static_push_out(team, sb, buckets, gain, bias.push_fixed.rate);
         }
@@ -612,7 +619,7 @@ fn solve_contact<const MEASURE: bool>(
 /// The split impulse of one contact: its bodies' pseudo-velocities apart at `target` along
 /// its normal (capped at its `max_push`), the accumulated impulse never pulling.
 #[inline(always)]
-fn push_out(sb: Bodies, c: &mut Contact, target: f64) {
+pub(super) fn push_out(sb: Bodies, c: &mut Contact, target: f64) {
     let (a, b) = (c.a as usize, c.b as usize);
     let (ba, bb) = (sb.get(a), sb.get(b));
     let target = target.min(c.max_push);
@@ -703,7 +710,7 @@ fn apply(sb: Bodies, c: &Contact, impulse: DVec2) {
 /// block share a body). The bits are those of one block after the other. Why four, not
 /// two or eight: docs/bench/engine-notes.md.
 #[inline(always)]
-fn in_blocks(
+pub(super) fn in_blocks(
     team: &Team,
     sb: &mut [SolverBody],
     buckets: &mut [Vec<Contact>],

@@ -52,6 +52,7 @@ fn params() -> ImpulseParams {
         support: None,
         exact_sliding: None,
         impact_propagation: false,
+        still_frames: true,
     }
 }
 
@@ -275,4 +276,101 @@ fn a_pair_a_few_hundredths_apart_is_a_contact_only_if_it_may_bounce_or_fall() {
     assert_eq!(contacts_made(0.01, still, 0.0, DVec2::ZERO), 1);
     assert_eq!(contacts_made(0.15, along, 0.5, DVec2::ZERO), 0);
     assert_eq!(contacts_made(0.15, still, 0.5, down), 0);
+}
+
+/// A crowd packed into a box past what fits, every body still: its frames run as
+/// push-out only, with the bits of the full passes, and its velocities stay 0.
+#[test]
+fn a_still_crowd_pushes_out_with_the_bits_of_the_full_passes() {
+    let circle = |key: u32, pos: DVec2| Body {
+        key: BodyKey(key),
+        restitution: 0.2,
+        friction: 0.2,
+        ..Body::for_test(Shape::circle(0.5), pos, DVec2::ZERO, 1.0)
+    };
+    let wall = |key: u32, pos: DVec2, half: DVec2| Body {
+        key: BodyKey(key),
+        ..Body::for_test(
+            Shape::rect(2.0 * half.x, 2.0 * half.y),
+            pos,
+            DVec2::ZERO,
+            0.0,
+        )
+    };
+    // Walls around a square 3.6 wide; a 4 x 4 grid of circles 1 across, 0.9 apart,
+    // the inner ones moved off the grid a little so the pushes do not cancel.
+    let mut start = vec![
+        wall(0, DVec2::new(0.0, -1.9), DVec2::new(2.0, 0.1)),
+        wall(1, DVec2::new(0.0, 1.9), DVec2::new(2.0, 0.1)),
+        wall(2, DVec2::new(-1.9, 0.0), DVec2::new(0.1, 2.0)),
+        wall(3, DVec2::new(1.9, 0.0), DVec2::new(0.1, 2.0)),
+    ];
+    for i in 0..4 {
+        for j in 0..4 {
+            let k = start.len() as u32;
+            let nudge = DVec2::new(0.013 * f64::from(k % 3), 0.007 * f64::from(k % 5));
+            let pos = DVec2::new(-1.35 + 0.9 * f64::from(i), -1.35 + 0.9 * f64::from(j));
+            start.push(circle(k, pos + nudge));
+        }
+    }
+    let movers: Vec<u32> = (4..start.len() as u32).collect();
+    let run = |still_frames: bool| {
+        let mut bodies = start.clone();
+        let mut contacts = Contacts::default();
+        let (mut kept, mut passes) = (Vec::new(), 0);
+        for _ in 0..30 {
+            let n = bodies.len() as u32;
+            let mut candidates: Vec<(u32, u32)> = (0..n)
+                .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+                .collect();
+            contacts.refill(&mut candidates, &mut kept);
+            let report = solve_frame(
+                &mut bodies,
+                &mut contacts.pairs,
+                ImpulseParams {
+                    split_impulses: true,
+                    substeps: 2,
+                    iterations: 2,
+                    adaptive_iterations: 6,
+                    slop: 0.0001,
+                    still_frames,
+                    ..params()
+                },
+                &mut SolverBuffers::default(),
+                &movers,
+                |_| DVec2::ZERO,
+                &mut Vec::new(),
+            );
+            passes += report.passes;
+        }
+        (bodies, passes)
+    };
+    let (still, still_passes) = run(true);
+    let (full, full_passes) = run(false);
+    // The full passes ran the collision stage and adaptive passes the still frames skip.
+    assert!(still_passes < full_passes, "{still_passes} {full_passes}");
+    let mut moved = 0.0_f64;
+    for ((s, f), b) in still.iter().zip(&full).zip(&start) {
+        assert_eq!(
+            s.pos.x.to_bits(),
+            f.pos.x.to_bits(),
+            "{} {} {}",
+            s.key.0,
+            s.pos,
+            f.pos
+        );
+        assert_eq!(
+            s.pos.y.to_bits(),
+            f.pos.y.to_bits(),
+            "{} {} {}",
+            s.key.0,
+            s.pos,
+            f.pos
+        );
+        assert_eq!(s.vel, DVec2::ZERO);
+        assert_eq!(f.vel, DVec2::ZERO);
+        moved = moved.max((s.pos - b.pos).length());
+    }
+    // The crowd was pushed about: the frames did work.
+    assert!(moved > 0.01, "{moved}");
 }

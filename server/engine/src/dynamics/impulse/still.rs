@@ -1,0 +1,72 @@
+//! Frames with nothing for the velocity passes to do: every body still, nothing
+//! accelerating one, no impulse carried from the last frame. Under split impulses the
+//! passes then only push out: each contact's velocity impulse would bring a normal
+//! velocity of 0 to a target of 0 (a touching contact holds) or to an approach it allows
+//! (a gap it may close), and friction a tangential velocity of 0 to 0, so every impulse
+//! is 0 and every velocity stays 0. A crowd its container holds, packed past what fits,
+//! spends its frames so: its circles move by the push-out alone (the crowds family: every
+//! velocity 0 for the whole run), and the velocity passes were half of its step.
+
+use glam::DVec2;
+
+use super::blocks::Bodies;
+use super::passes::{in_blocks, push_out};
+use super::team::Team;
+use super::{Contact, ImpulseParams, SolverBody};
+
+/// Whether the frame is still: split impulses, no stage that moves a velocity without a
+/// contact's impulse (the resting load, the support sweep and exact sliding act under
+/// gravity), every body's velocity and gain 0, and every contact starting from no
+/// impulse. The bodies' velocities then stay 0 through every sub-step, and the
+/// collision stage, the warm start, the relax passes, the velocity half of each pass and
+/// the impact sweep (no contact approaches or presses) change nothing.
+pub(super) fn frame(
+    params: &ImpulseParams,
+    sb: &[SolverBody],
+    gain: &[DVec2],
+    buckets: &[Vec<Contact>],
+) -> bool {
+    params.split_impulses
+        && params.rest_load.is_none()
+        && params.support.is_none()
+        && params.exact_sliding.is_none()
+        && sb.iter().all(|s| s.vel == DVec2::ZERO)
+        && gain.iter().all(|g| *g == DVec2::ZERO)
+        && buckets
+            .iter()
+            .flatten()
+            .all(|c| c.normal_impulse == 0.0 && c.tangent_impulse == 0.0)
+}
+
+/// One pass of a still frame: the push-out half of each contact's share of a velocity
+/// pass (the free contacts of a held crowd are pushed by [`super::passes::spread_push_out`]
+/// instead). `rate` and `rate_fixed`: the push-out per unit of depth against moving and
+/// against static bodies.
+pub(super) fn push_pass(
+    team: &Team,
+    sb: &mut [SolverBody],
+    buckets: &mut [Vec<Contact>],
+    rate: f64,
+    rate_fixed: f64,
+) {
+    in_blocks(
+        team,
+        sb,
+        buckets,
+        #[inline(always)]
+        |bodies: Bodies, c: &mut Contact| {
+            if c.free {
+                return 0.0;
+            }
+            let gap = c.gap
+                + (bodies.get(c.b as usize).delta - bodies.get(c.a as usize).delta).dot(c.normal);
+            let pen = (-gap - c.slop).max(0.0);
+            if pen > 0.0 {
+                push_out(bodies, c, if c.fixed { rate_fixed } else { rate } * pen);
+            } else if c.pseudo_impulse > 0.0 {
+                push_out(bodies, c, 0.0);
+            }
+            0.0
+        },
+    );
+}
