@@ -342,6 +342,9 @@ pub struct SolverBuffers {
     /// Union-find scratch of [`passes::hold_free`].
     #[serde(skip)]
     held: Vec<u32>,
+    /// The contacts a still frame pushes out in its passes (see [`still::Pushing`]).
+    #[serde(skip)]
+    pushing: still::Pushing,
     /// The frame's supporting contacts, by the body they hold up, lowest first (see
     /// [`support`]).
     #[serde(skip)]
@@ -513,6 +516,7 @@ pub fn solve_frame(
             moved,
             spread,
             held,
+            pushing,
             ..
         } = &mut *buffers;
         if let Some(up) = params.rest_load {
@@ -529,6 +533,12 @@ pub fn solve_frame(
         let converged = CONVERGED_CHANGE * found.smallest;
         // Every body still and nothing to move one: the passes only push out.
         let still = params.still_frames && still::frame(&params, sb, gain, buckets);
+        // A still crowd's passes push out only the contacts its spread does not: those
+        // alone are swept (the others would change nothing), and put back after.
+        let gathered = still && found_free;
+        if gathered {
+            pushing.gather(buckets);
+        }
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
             if params.exact_sliding.is_some() {
@@ -559,7 +569,12 @@ pub fn solve_frame(
                 // Before a step's first sub-step only the contacts found with a share
                 // of their last push have one; after it, any contact that pushed.
                 if step > 0 || found.warm_push {
-                    passes::warm_push(team, sb, buckets);
+                    let work = if gathered {
+                        &mut pushing.buckets
+                    } else {
+                        &mut *buckets
+                    };
+                    passes::warm_push(team, sb, work);
                 }
                 if found_free {
                     passes::spread_push_out(sb, buckets, bias.push.rate, spread);
@@ -568,7 +583,11 @@ pub fn solve_frame(
             passes::solve(
                 team,
                 sb,
-                buckets,
+                if gathered {
+                    &mut pushing.buckets
+                } else {
+                    &mut *buckets
+                },
                 &params,
                 bias,
                 h,
@@ -600,6 +619,9 @@ pub fn solve_frame(
             if !still {
                 passes::relax(team, sb, buckets, &params, h, last_step, &mut report);
             }
+        }
+        if gathered {
+            pushing.scatter(buckets);
             clock.lap(times.as_mut().map(|t| &mut t.relax));
         }
     }

@@ -66,6 +66,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         push_cap: _,
         spread: _,
         held: _,
+        pushing: _,
         supports: _,
         impacts: _,
         crew: _,
@@ -313,7 +314,8 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             // Touching: within the gap a resting contact holds (bodies at rest settle
             // anywhere in it, and a bounce leaves them apart, never overlapped), or
             // meeting within the frame.
-            if gap <= SPECULATIVE_GAP * size || (impact < 0.0 && gap <= -impact * frame_dt) {
+            let band = SPECULATIVE_GAP * size;
+            if gap <= band || (impact < 0.0 && gap <= -impact * frame_dt) {
                 found.touching += 1;
             }
             let restitution = a.restitution.min(b.restitution).max(0.0);
@@ -335,7 +337,6 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 && (accelerated || approach < 0.0);
             // Held last step and lifted just past the gap a resting contact holds: back to
             // that gap, not down to touching ([`DRIFT_BACK`]).
-            let band = SPECULATIVE_GAP * size;
             let drifted = gap > band && gap <= DRIFT_BACK * band;
             let keep = if accelerated && jn > 0.0 && !bounces && drifted {
                 band
@@ -392,7 +393,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 keep: keep as f32,
                 // A pair about to bounce may close its gap, however small: it bounces
                 // where it meets, not short of it.
-                speculative: gap > SPECULATIVE_GAP * size || (bounces && gap > 0.0),
+                speculative: gap > band || (bounces && gap > 0.0),
                 fixed,
                 free,
                 bounced: false,

@@ -70,3 +70,40 @@ pub(super) fn push_pass(
         },
     );
 }
+
+/// The contacts of a still frame that its passes push out: all but the free ones (a held
+/// crowd's, pushed by the spread, whose rows the passes would only read), copied out by
+/// bucket in their order, so each pass sweeps the few against the walls, not the crowd.
+/// The bits are those of the full buckets: a free contact's pass changes nothing, and
+/// the others come in the same order.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Pushing {
+    pub(super) buckets: Vec<Vec<Contact>>,
+    /// Where each came from: its bucket and its place there, in the order copied.
+    from: Vec<(u32, u32)>,
+}
+
+impl Pushing {
+    /// Copies out the contacts of `buckets` that are not free.
+    pub(super) fn gather(&mut self, buckets: &[Vec<Contact>]) {
+        self.buckets.resize_with(buckets.len(), Vec::new);
+        self.from.clear();
+        for (k, (bucket, out)) in buckets.iter().zip(self.buckets.iter_mut()).enumerate() {
+            out.clear();
+            for (i, c) in bucket.iter().enumerate() {
+                if !c.free {
+                    out.push(*c);
+                    self.from.push((k as u32, i as u32));
+                }
+            }
+        }
+    }
+
+    /// Puts the contacts back where [`Pushing::gather`] took them.
+    pub(super) fn scatter(&self, buckets: &mut [Vec<Contact>]) {
+        let copied = self.buckets.iter().flatten();
+        for (c, &(k, i)) in copied.zip(&self.from) {
+            buckets[k as usize][i as usize] = *c;
+        }
+    }
+}

@@ -55,7 +55,7 @@ pub(super) fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
 /// (the same bits on every shipped scene); the others only cost the contact search a look.
 pub(super) fn sideways(body: &Body, steps: f64, travel: f64) -> f64 {
     let room = |steps: f64| steps * travel * SIDEWAYS;
-    room(steps).min(room(steps.min(2.0)).max(0.5 * body.shape.half_extents().max_element()))
+    room(steps).min(room(steps.min(SWEPT_STEPS)).max(0.5 * body.shape.half_extents().max_element()))
 }
 
 /// A box swept by `d` and by `e`: the box, the box moved by either, and all between.
