@@ -532,7 +532,7 @@ pub fn solve_frame(
         // contact.
         let converged = CONVERGED_CHANGE * found.smallest;
         // Every body still and nothing to move one: the passes only push out.
-        let still = params.still_frames && still::frame(&params, sb, gain, buckets);
+        let still = params.still_frames && still::frame(&params, sb, gain, found.impulses);
         // A still crowd's passes push out only the contacts its spread does not: those
         // alone are swept (the others would change nothing), and put back after.
         let gathered = still && found_free;

@@ -199,6 +199,8 @@ pub(super) struct Found {
     pub free: bool,
     /// Whether a contact starts from a share of its last push ([`WARM_PUSH_SHARE`]).
     pub warm_push: bool,
+    /// Whether a contact starts from an impulse (warm-started from the last frame).
+    pub impulses: bool,
 }
 
 impl Default for Found {
@@ -211,6 +213,7 @@ impl Default for Found {
             deep_fixed: false,
             free: false,
             warm_push: false,
+            impulses: false,
         }
     }
 }
@@ -226,6 +229,7 @@ impl Found {
             deep_fixed: self.deep_fixed || other.deep_fixed,
             free: self.free || other.free,
             warm_push: self.warm_push || other.warm_push,
+            impulses: self.impulses || other.impulses,
         }
     }
 }
@@ -371,6 +375,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
                 0.0
             };
             found.warm_push |= jp > 0.0;
+            found.impulses |= warm && (jn != 0.0 || jt != 0.0);
             out[bucket].push(Contact {
                 a: sa,
                 b: sb,

@@ -16,26 +16,24 @@ use super::{Contact, ImpulseParams, SolverBody};
 
 /// Whether the frame is still: split impulses, no stage that moves a velocity without a
 /// contact's impulse (the resting load, the support sweep and exact sliding act under
-/// gravity), every body's velocity and gain 0, and every contact starting from no
-/// impulse. The bodies' velocities then stay 0 through every sub-step, and the
-/// collision stage, the warm start, the relax passes, the velocity half of each pass and
-/// the impact sweep (no contact approaches or presses) change nothing.
+/// gravity), every body's velocity and gain 0, and no contact starting from an impulse
+/// (`impulses`: the contact search found one). The bodies' velocities then stay 0
+/// through every sub-step, and the collision stage, the warm start, the relax passes,
+/// the velocity half of each pass and the impact sweep (no contact approaches or
+/// presses) change nothing.
 pub(super) fn frame(
     params: &ImpulseParams,
     sb: &[SolverBody],
     gain: &[DVec2],
-    buckets: &[Vec<Contact>],
+    impulses: bool,
 ) -> bool {
     params.split_impulses
         && params.rest_load.is_none()
         && params.support.is_none()
         && params.exact_sliding.is_none()
+        && !impulses
         && sb.iter().all(|s| s.vel == DVec2::ZERO)
         && gain.iter().all(|g| *g == DVec2::ZERO)
-        && buckets
-            .iter()
-            .flatten()
-            .all(|c| c.normal_impulse == 0.0 && c.tangent_impulse == 0.0)
 }
 
 /// One pass of a still frame: the push-out half of each contact's share of a velocity
