@@ -14,7 +14,7 @@
 //! hand, interactions declared), which rebuilds the set.
 //!
 //! **A frame of reference of its own.** A fat box is swept along its body's travel (two
-//! steps of it under gravity, four without: `SWEPT_STEPS`; and grown by a quarter of that
+//! steps of it under gravity, eight without: `SWEPT_STEPS`; and grown by a quarter of that
 //! every way, for a body turned aside within a step), so a crowd moving together (a heavy
 //! body pushing hundreds ahead of it, a rain falling) would have every box grown by the
 //! crowd's speed and overlapping hundreds of others, though the bodies hardly move

@@ -346,7 +346,7 @@ fn meeting(
 proptest! {
     /// A crowd moving together at up to 300 u/s, each body with a velocity of its own
     /// besides, over a static floor, with gravity or without (where a fat box is swept
-    /// along four steps of travel, not two): at every step, every pair that meets within
+    /// along eight steps of travel, not two): at every step, every pair that meets within
     /// the step (both bodies going on, or under gravity either stopped by a third) is a
     /// candidate, whatever frame the set chose.
     #[test]
@@ -467,9 +467,9 @@ fn a_crowd_moving_together_keeps_its_boxes() {
 }
 
 /// A spray of 400 boxes flying apart from a point at up to 14 u/s, no gravity: no frame
-/// follows them all, so each box leaves its fat box in time. Swept along four steps of
-/// travel (a body nothing accelerates flies straight), a box is placed again about every
-/// fifth step (2 392 times in 30 steps); under gravity, swept along two and back to where
+/// follows them all, so each box leaves its fat box in time. Swept along eight steps of
+/// travel (a body nothing accelerates flies straight), a box is placed again no more than
+/// every fourth step; under gravity, swept along two and back to where
 /// it would stop, about every other step (5 800).
 #[test]
 fn a_spray_without_gravity_places_its_boxes_again_every_few_steps() {
@@ -629,10 +629,10 @@ fn a_rain_in_free_fall_keeps_its_boxes_in_a_falling_frame() {
     );
 }
 
-/// A body nothing accelerates flies straight along its sweep of four steps: a fast one's
+/// A body nothing accelerates flies straight along its sweep of eight steps: a fast one's
 /// box is grown every way by two steps' share of its travel, as a body gravity pulls
-/// (turned aside, it leaves its box and is placed again); a slow one's, whose four steps'
-/// share is less than a quarter of its size, by four.
+/// (turned aside, it leaves its box and is placed again); a slow one's, whose eight steps'
+/// share is less than a quarter of its size, by eight.
 #[test]
 fn a_fast_body_flying_straight_gets_two_steps_room_sideways() {
     let dt = 1.0 / 60.0;
@@ -659,7 +659,7 @@ fn a_fast_body_flying_straight_gets_two_steps_room_sideways() {
     assert!((fast - grown(2.0, 60.0)).abs() < 1e-9, "grown by {fast}");
     let slow = room(DVec2::ZERO, 1.0);
     assert!(
-        (slow - grown(4.0, 1.0)).abs() < 1e-9,
+        (slow - grown(8.0, 1.0)).abs() < 1e-9,
         "grown by {slow} at 1 u/s"
     );
     let pulled = room(DVec2::new(0.0, -10.0), 60.0);
