@@ -351,22 +351,8 @@ fn a_still_crowd_pushes_out_with_the_bits_of_the_full_passes() {
     assert!(still_passes < full_passes, "{still_passes} {full_passes}");
     let mut moved = 0.0_f64;
     for ((s, f), b) in still.iter().zip(&full).zip(&start) {
-        assert_eq!(
-            s.pos.x.to_bits(),
-            f.pos.x.to_bits(),
-            "{} {} {}",
-            s.key.0,
-            s.pos,
-            f.pos
-        );
-        assert_eq!(
-            s.pos.y.to_bits(),
-            f.pos.y.to_bits(),
-            "{} {} {}",
-            s.key.0,
-            s.pos,
-            f.pos
-        );
+        let bits = |p: DVec2| (p.x.to_bits(), p.y.to_bits());
+        assert_eq!(bits(s.pos), bits(f.pos), "{} {} {}", s.key.0, s.pos, f.pos);
         assert_eq!(s.vel, DVec2::ZERO);
         assert_eq!(f.vel, DVec2::ZERO);
         moved = moved.max((s.pos - b.pos).length());
