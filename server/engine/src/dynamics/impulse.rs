@@ -267,8 +267,9 @@ pub const SOLVER_BODY_BYTES: usize = std::mem::size_of::<SolverBody>();
 pub struct ImpulseReport {
     pub contacts: u64,
     pub deepest: f64,
-    /// Velocity passes run over the contacts (biased and relax, every sub-step): counted
-    /// as they run, not derived from the settings.
+    /// Velocity passes run over the contacts (biased and relax, every sub-step; a still
+    /// frame's push-out passes count as biased ones): counted as they run, not derived
+    /// from the settings.
     pub passes: u64,
     /// The largest normal velocity change of the last pass times the sub-step (see
     /// [`crate::world::StepStats::residual`]).
