@@ -52,11 +52,11 @@ pub(super) fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
 /// ([`reach`]). Grown by four steps every way, the fast fragments of a block struck apart
 /// overlapped dozens of boxes each: impacts seed 5 (289 circles struck by one 174 times
 /// heavier at 88 u/s) held 12 200 pairs for its 290 bodies at the sixth step, 7 300 with
-/// two steps' room (then swept along four).
-/// Slow bodies turned aside often (a block struck at 15 u/s) keep the room of all their
-/// steps: with
-/// two for every body, impacts seed 2 ran about 5% slower, placed again more often. The pairs a body can meet within a step are in the set either way
-/// (the same bits on every shipped scene); the others only cost the contact search a look.
+/// two steps' room (then swept along four). Slow bodies turned aside often (a block struck
+/// at 15 u/s) keep the room of all their steps: with two for every body, impacts seed 2
+/// ran about 5% slower, placed again more often. The pairs a body can meet within a step
+/// are in the set either way (the same bits on every shipped scene); the others only cost
+/// the contact search a look.
 pub(super) fn sideways(body: &Body, steps: f64, travel: f64) -> f64 {
     let room = |steps: f64| steps * travel * SIDEWAYS;
     room(steps).min(room(steps.min(SWEPT_STEPS)).max(0.5 * body.shape.half_extents().max_element()))
