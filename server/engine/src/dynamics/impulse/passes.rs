@@ -569,14 +569,8 @@ fn solve_contact<const MEASURE: bool>(
         let apart = c.speculative && gap > 0.0;
         let pen = if apart { 0.0 } else { (-gap - c.slop).max(0.0) };
         if split && !c.free {
-            // The push goes to the pseudo-velocities; the velocity only holds. Pushed
-            // apart before and no longer overlapping, a contact takes back the push it
-            // started from as far as it now parts its bodies.
-            if pen > 0.0 {
-                push_out(sb, c, bias.rate * pen);
-            } else if c.pseudo_impulse > 0.0 {
-                push_out(sb, c, 0.0);
-            }
+            // The push goes to the pseudo-velocities; the velocity only holds.
+            split_push(sb, c, bias.rate, pen);
         }
         let (target, mass_scale, impulse_scale) = if apart {
             (-closing(gap, f64::from(c.keep)) * inv_h, 1.0, 0.0)
@@ -616,10 +610,22 @@ fn solve_contact<const MEASURE: bool>(
     0.0
 }
 
+/// A contact's push-out in a pass under split impulses: at `rate` times `pen`, its depth
+/// beyond the slop; or, pushed apart before and no longer overlapping, the push it
+/// started from taken back as far as it now parts its bodies.
+#[inline(always)]
+pub(super) fn split_push(sb: Bodies, c: &mut Contact, rate: f64, pen: f64) {
+    if pen > 0.0 {
+        push_out(sb, c, rate * pen);
+    } else if c.pseudo_impulse > 0.0 {
+        push_out(sb, c, 0.0);
+    }
+}
+
 /// The split impulse of one contact: its bodies' pseudo-velocities apart at `target` along
 /// its normal (capped at its `max_push`), the accumulated impulse never pulling.
 #[inline(always)]
-pub(super) fn push_out(sb: Bodies, c: &mut Contact, target: f64) {
+fn push_out(sb: Bodies, c: &mut Contact, target: f64) {
     let (a, b) = (c.a as usize, c.b as usize);
     let (ba, bb) = (sb.get(a), sb.get(b));
     let target = target.min(c.max_push);

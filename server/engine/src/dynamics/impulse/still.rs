@@ -10,7 +10,7 @@
 use glam::DVec2;
 
 use super::blocks::Bodies;
-use super::passes::{in_blocks, push_out};
+use super::passes::{in_blocks, split_push};
 use super::team::Team;
 use super::{Contact, ImpulseParams, SolverBody};
 
@@ -59,11 +59,7 @@ pub(super) fn push_pass(
             let gap = c.gap
                 + (bodies.get(c.b as usize).delta - bodies.get(c.a as usize).delta).dot(c.normal);
             let pen = (-gap - c.slop).max(0.0);
-            if pen > 0.0 {
-                push_out(bodies, c, if c.fixed { rate_fixed } else { rate } * pen);
-            } else if c.pseudo_impulse > 0.0 {
-                push_out(bodies, c, 0.0);
-            }
+            split_push(bodies, c, if c.fixed { rate_fixed } else { rate }, pen);
             0.0
         },
     );
