@@ -129,9 +129,19 @@ fn touching(a: &Body, b: &Body) -> bool {
 /// not drifting (see [`islands`]).
 pub const FREE_DRIFT: f64 = 0.01;
 
+/// What [`islands`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Slept {
+    /// Bodies asleep now.
+    pub sleeping: u64,
+    /// Whether a body put to sleep was stopped (its velocity was not zero): what the
+    /// bodies look like changed after the pairs were found.
+    pub stopped: bool,
+}
+
 /// After [`rest`]: joins touching bodies into islands and puts resting islands to sleep
 /// or wakes them. `pairs` are candidate pairs of the step (body indices); those touching
-/// join islands. Returns how many bodies sleep now.
+/// join islands. Says how many bodies sleep now, and whether one put to sleep was stopped.
 ///
 /// A sleeping island stops where it stands. One that nothing holds must also not drift:
 /// its centre of mass must move slower than [`FREE_DRIFT`] times `speed`, or stopping it
@@ -148,7 +158,7 @@ pub fn islands(
     speed: f64,
     delay: f64,
     dt: f64,
-) -> u64 {
+) -> Slept {
     let mut parent: Vec<u32> = (0..bodies.len() as u32).collect();
     // A body awake that has not rested long enough keeps its island awake. Joining two such
     // bodies changes no island's fate (both islands are restless already), so their pair
@@ -218,7 +228,7 @@ pub fn islands(
             *r |= d;
         }
     }
-    let mut sleeping = 0;
+    let (mut sleeping, mut stopped) = (0, false);
     for &i in movers {
         let root = find(&mut parent, i);
         let b = &mut bodies[i as usize];
@@ -231,10 +241,11 @@ pub fn islands(
                 b.asleep = Some(Sleeper {
                     inv_mass: b.inv_mass,
                 });
+                stopped |= b.vel != glam::DVec2::ZERO;
                 b.vel = glam::DVec2::ZERO;
             }
             sleeping += 1;
         }
     }
-    sleeping
+    Slept { sleeping, stopped }
 }

@@ -20,6 +20,8 @@ impl World {
     /// runs first ([`World::check`]), and only an accepted action wakes sleeping bodies.
     pub fn apply(&mut self, action: &Action) -> Result<ActionOutcome, ActionError> {
         self.check(action)?;
+        // The pairs the islands found after the last step are looked at again.
+        self.scratch.fresh_pairs = None;
         // Anything that moves bodies or changes the world's parameters wakes it.
         if !matches!(
             action,

@@ -175,6 +175,166 @@ impl World {
 
 #[cfg(test)]
 mod tests {
+    use crate::action::Action;
+    use crate::world::World;
+
+    fn world(text: &str) -> World {
+        crate::scene::parse(text, std::path::Path::new("scene.toml"), &[]).expect("the scene")
+    }
+
+    /// A crowd packed into walls past what fits, without gravity: it is long in resting
+    /// whole, but parts of it sleep, so the islands bring the pairs up to date after the
+    /// steps.
+    /// The step's own broad phase is skipped then, and the crowd runs to the bits of a
+    /// world that runs it every step.
+    #[test]
+    fn a_jammed_crowd_skips_the_broad_phase_the_islands_did_with_the_same_bits() {
+        let text = r#"
+            [world]
+            gravity = [0, 0]
+            bounds = [[-10, -10], [10, 10]]
+
+            [[body]]
+            id = "floor"
+            group = "walls"
+            shape = "rect"
+            size = [12, 1]
+            pos = [0, -5.5]
+            mass = 0
+
+            [[body]]
+            id = "roof"
+            group = "walls"
+            shape = "rect"
+            size = [12, 1]
+            pos = [0, 5.5]
+            mass = 0
+
+            [[body]]
+            id = "left"
+            group = "walls"
+            shape = "rect"
+            size = [1, 12]
+            pos = [-5.5, 0]
+            mass = 0
+
+            [[body]]
+            id = "right"
+            group = "walls"
+            shape = "rect"
+            size = [1, 12]
+            pos = [5.5, 0]
+            mass = 0
+
+            [[generate]]
+            kind = "grid"
+            id = "ball"
+            group = "balls"
+            shape = "circle"
+            radius = 0.5
+            start = [-4.55, -4.5]
+            step = [0.91, 0.9]
+            cols = 11
+            rows = 11
+            restitution = 0
+            friction = 0.4
+
+            [[interact]]
+            a = "balls"
+            b = "balls"
+
+            [[interact]]
+            a = "balls"
+            b = "walls"
+        "#;
+        let (mut skipping, mut full) = (world(text), world(text));
+        let mut skipped = 0;
+        for step in 0..240 {
+            skipped += u32::from(skipping.scratch.fresh_pairs.is_some());
+            // What any action does: the next broad phase looks at every body again.
+            full.scratch.fresh_pairs = None;
+            skipping.step();
+            full.step();
+            assert_eq!(
+                skipping.state_hash(),
+                full.state_hash(),
+                "the worlds part at step {step}"
+            );
+        }
+        assert!(
+            skipped >= 50,
+            "the islands' pairs stood for the step's broad phase {skipped} times of 240"
+        );
+    }
+
+    /// Two balls asleep apart while a third drifts: the islands' pairs stand for the
+    /// steps' broad phases. A body put onto another by an action is seen by the next
+    /// broad phase all the same, and pushed out.
+    #[test]
+    fn an_action_between_steps_makes_the_broad_phase_look_again() {
+        let text = r#"
+            [world]
+            gravity = [0, 0]
+            bounds = [[-100, -100], [100, 100]]
+
+            [[body]]
+            id = "a"
+            group = "balls"
+            shape = "circle"
+            radius = 0.5
+            pos = [0, 0]
+
+            [[body]]
+            id = "b"
+            group = "balls"
+            shape = "circle"
+            radius = 0.5
+            pos = [10, 0]
+
+            [[body]]
+            id = "drifter"
+            group = "balls"
+            shape = "circle"
+            radius = 0.5
+            pos = [-50, 0]
+            vel = [1, 0]
+
+            [[interact]]
+            a = "balls"
+            b = "balls"
+        "#;
+        let mut world = world(text);
+        for _ in 0..120 {
+            world.step();
+        }
+        assert_eq!(world.stats().sleeping, 2, "the two balls at rest sleep");
+        assert!(
+            world.scratch.fresh_pairs.is_some(),
+            "the islands' pairs stand for the next broad phase"
+        );
+        world
+            .apply(&Action::SetBody {
+                body: "b".into(),
+                pos: Some([0.6, 0.0]),
+                vel: None,
+            })
+            .expect("b moves onto a");
+        world.step();
+        assert!(
+            world.stats().contacts >= 1,
+            "the first step after the action finds the contact"
+        );
+        for _ in 0..30 {
+            world.step();
+        }
+        let (a, b) = (world.body("a").unwrap().pos, world.body("b").unwrap().pos);
+        assert!(
+            (b - a).length() > 0.99,
+            "b put 0.6 from a is pushed out to {}",
+            (b - a).length()
+        );
+    }
+
     /// A packed crowd thrown at 50 u/s beside a box at rest: once that box has rested long
     /// enough, the islands of sleeping bring the pairs up to date after every step as
     /// well as the step's own broad phase. The set's frame follows the crowd by the time

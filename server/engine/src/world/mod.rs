@@ -215,6 +215,10 @@ struct Scratch {
     /// The energies (kinetic, mechanical) of a world that rested whole at the last step
     /// (see [`World::dormant`]): nothing moved since, so they are the same.
     dormant_energies: Option<(f64, f64)>,
+    /// What the islands of sleeping brought the pair set up to date for after the last
+    /// step, when the next step's own broad phase would find nothing to change: while it
+    /// still matches, that broad phase is skipped (see [`World::find_contacts`]).
+    fresh_pairs: Option<step::FreshPairs>,
 }
 
 impl World {

@@ -61,6 +61,19 @@ impl StepStats {
     }
 }
 
+/// What the pair set was brought up to date for by the islands of sleeping after a step:
+/// the frame of the next step, and what of the world the update reads besides the bodies.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct FreshPairs {
+    frame: u64,
+    layout_revision: u64,
+    dt: f64,
+    gravity: glam::DVec2,
+    substeps: u32,
+    mass_scaled: bool,
+    grid: bool,
+}
+
 impl World {
     /// Advances the world by one fixed step, stage after stage:
     ///
@@ -231,7 +244,7 @@ impl World {
         } else {
             either::Right(self.scratch.candidates.iter().copied())
         };
-        self.sleeping = sleep::islands(
+        let slept = sleep::islands(
             &mut self.bodies,
             &self.movers,
             pairs,
@@ -240,7 +253,38 @@ impl World {
             delay,
             dt,
         );
+        self.sleeping = slept.sleeping;
+        // The next step's own broad phase would look at the bodies as they are now, and
+        // find every one inside its box, unless a body put to sleep stopped (its box was
+        // placed for its velocity) or a sleeper is pulled (frozen for the step, it is
+        // swept as a static body: see `pairs::frame`).
+        let pulled_sleeper = || {
+            self.movers.iter().any(|&i| {
+                let b = &self.bodies[i as usize];
+                b.asleep.is_some()
+                    && integrate::acceleration_under(b, self.config.gravity, false)
+                        != glam::DVec2::ZERO
+            })
+        };
+        if self.config.broad_phase == BroadPhase::Grid && !slept.stopped && !pulled_sleeper() {
+            self.scratch.fresh_pairs = Some(self.fresh_pairs(self.frame + 1));
+        }
         self.sleeping
+    }
+
+    /// What a pair set brought up to date for frame `frame` depends on besides the bodies
+    /// (which only the step and the world's methods move).
+    fn fresh_pairs(&self, frame: u64) -> FreshPairs {
+        let c = &self.config;
+        FreshPairs {
+            frame,
+            layout_revision: self.layout_revision,
+            dt: c.dt,
+            gravity: c.gravity,
+            substeps: c.substeps,
+            mass_scaled: c.mass_scaled_acceleration,
+            grid: c.broad_phase == BroadPhase::Grid,
+        }
     }
 
     /// The broad phase of a solver that takes every interaction's pairs at once (the
@@ -477,6 +521,17 @@ impl World {
     /// grid keeps them up to date itself; sweep and all pairs refill them, the pairs found
     /// again keeping their warm starts.
     fn find_contacts(&mut self, dt: f64) {
+        // The islands of sleeping brought the pairs up to date after the last step, and
+        // nothing moved a body since (no action, no rule steering one): each body is still
+        // inside its box, and this broad phase would change nothing. In a crowd that never
+        // rests, a check of every body a step.
+        let fresh = self.scratch.fresh_pairs.take();
+        if fresh.is_some()
+            && fresh == Some(self.fresh_pairs(self.frame))
+            && self.behaving.is_empty()
+        {
+            return;
+        }
         self.broad_phase(dt);
         if self.config.broad_phase != BroadPhase::Grid {
             self.contacts.refill(
