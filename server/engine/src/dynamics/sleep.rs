@@ -15,6 +15,7 @@
 
 use super::body::{Body, Sleeper};
 use crate::geometry::separation;
+use glam::DVec2;
 
 /// Sleepers become static for the step: their inverse mass is set aside.
 pub fn freeze(bodies: &mut [Body], movers: &[u32]) {
@@ -96,8 +97,8 @@ pub fn rest(
             b.rest_anchor = from.unwrap_or(b.pos);
         }
         b.rest_anchor += (b.pos - b.rest_anchor) * (dt / delay.max(dt));
-        let still = from.is_some() && (b.pos - b.rest_anchor).length() < reach;
-        b.rest_time = if may_sleep(i as usize) && b.vel.length() < speed && still {
+        let still = from.is_some() && shorter(b.pos - b.rest_anchor, reach);
+        b.rest_time = if may_sleep(i as usize) && shorter(b.vel, speed) && still {
             b.rest_time + dt
         } else {
             0.0
@@ -105,6 +106,24 @@ pub fn rest(
         islands_matter |= rested(b.rest_time, delay, dt);
     }
     islands_matter
+}
+
+/// `v.length() < r`, to the bit, without the square root where the squares decide it
+/// (unless `|v|²` is within a millionth of a millionth of `r²`, or out of the normal
+/// range): each body's rest asks it twice a step, and its latency was a third of the
+/// rest's time.
+fn shorter(v: DVec2, r: f64) -> bool {
+    let (l2, r2) = (v.length_squared(), r * r);
+    if r > 0.0 && (1e-300..1e300).contains(&r2) {
+        // The square root and `r²` are each off by half a rounding at most.
+        if l2 < r2 * (1.0 - 1e-12) {
+            return true;
+        }
+        if l2 > r2 * (1.0 + 1e-12) {
+            return false;
+        }
+    }
+    v.length() < r
 }
 
 /// Whether a body at rest for `rest_time`, summed a step `dt` at a time, has rested
@@ -248,4 +267,31 @@ pub fn islands(
         }
     }
     Slept { sleeping, stopped }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// `shorter` answers as the square root does: on vectors and bounds of any scale,
+        /// and on vectors a rounding or a few away from the bound (where the squares do
+        /// not decide it).
+        #[test]
+        fn shorter_answers_as_the_length_does(
+            x in -1e3f64..1e3, y in -1e3f64..1e3, scale in -200i32..200, r in 0.0f64..2e3,
+            ulps in -4i64..4,
+        ) {
+            let k = 10f64.powi(scale);
+            let v = DVec2::new(x, y) * k;
+            for r in [r * k, -r * k, 0.0, f64::NAN, f64::INFINITY] {
+                prop_assert_eq!(shorter(v, r), v.length() < r, "{} against {}", v, r);
+            }
+            // A bound at the vector's own length, moved by a few roundings.
+            let l = v.length();
+            let near = f64::from_bits((l.to_bits() as i64 + ulps).max(0) as u64);
+            prop_assert_eq!(shorter(v, near), v.length() < near, "{} against {}", v, near);
+        }
+    }
 }
