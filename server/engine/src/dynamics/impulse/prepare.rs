@@ -123,10 +123,13 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         bucket.clear();
     }
     // Every body of a pair gets its place first (the movers have theirs), so that the
-    // contacts can then be found on several threads, each pair on its own.
-    for pair in pairs.iter() {
-        place(pair.a, sb);
-        place(pair.b, sb);
+    // contacts can then be found on several threads, each pair on its own. Where every
+    // body moves (a block struck in empty space), every one has its place already.
+    if movers.len() < bodies.len() {
+        for pair in pairs.iter() {
+            place(pair.a, sb);
+            place(pair.b, sb);
+        }
     }
     let find = Finder {
         bodies,
