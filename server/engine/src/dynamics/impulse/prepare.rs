@@ -124,8 +124,16 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
     }
     // Every body of a pair gets its place first (the movers have theirs), so that the
     // contacts can then be found on several threads, each pair on its own. Where every
-    // body moves (a block struck in empty space), every one has its place already.
-    if movers.len() < bodies.len() {
+    // body moves (a block struck in empty space), every one has its place already; where
+    // the others are few beside the pairs (a crowd's four walls), each of them gets one,
+    // in body order, without a pass over the pairs. A static body's place is only where
+    // the solver reads it: which one it gets changes nothing.
+    let others = bodies.len() - movers.len().min(bodies.len());
+    if others > 0 && others * 8 <= pairs.len() {
+        for i in 0..bodies.len() as u32 {
+            place(i, sb);
+        }
+    } else if others > 0 {
         for pair in pairs.iter() {
             place(pair.a, sb);
             place(pair.b, sb);
