@@ -182,6 +182,12 @@ mod tests {
         crate::scene::parse(text, std::path::Path::new("scene.toml"), &[]).expect("the scene")
     }
 
+    /// A scene's `[[body]]` table: `id` of `group`, the shape's fields, at `pos`, with
+    /// `more` fields.
+    fn body(id: &str, group: &str, shape: &str, pos: [f64; 2], more: &str) -> String {
+        format!("[[body]]\nid = \"{id}\"\ngroup = \"{group}\"\n{shape}\npos = {pos:?}\n{more}\n")
+    }
+
     /// A crowd packed into walls past what fits, without gravity: it is long in resting
     /// whole, but parts of it sleep, so the islands bring the pairs up to date after the
     /// steps.
@@ -189,42 +195,28 @@ mod tests {
     /// world that runs it every step.
     #[test]
     fn a_jammed_crowd_skips_the_broad_phase_the_islands_did_with_the_same_bits() {
-        let text = r#"
+        let (across, up) = (
+            "shape = \"rect\"\nsize = [12, 1]",
+            "shape = \"rect\"\nsize = [1, 12]",
+        );
+        let walls: String = [
+            ("floor", across, [0.0, -5.5]),
+            ("roof", across, [0.0, 5.5]),
+            ("left", up, [-5.5, 0.0]),
+            ("right", up, [5.5, 0.0]),
+        ]
+        .iter()
+        .map(|&(id, shape, pos)| body(id, "walls", shape, pos, "mass = 0"))
+        .collect();
+        let text = format!(
+            r#"
+            interact = [{{ a = "balls", b = "balls" }}, {{ a = "balls", b = "walls" }}]
+
             [world]
             gravity = [0, 0]
             bounds = [[-10, -10], [10, 10]]
 
-            [[body]]
-            id = "floor"
-            group = "walls"
-            shape = "rect"
-            size = [12, 1]
-            pos = [0, -5.5]
-            mass = 0
-
-            [[body]]
-            id = "roof"
-            group = "walls"
-            shape = "rect"
-            size = [12, 1]
-            pos = [0, 5.5]
-            mass = 0
-
-            [[body]]
-            id = "left"
-            group = "walls"
-            shape = "rect"
-            size = [1, 12]
-            pos = [-5.5, 0]
-            mass = 0
-
-            [[body]]
-            id = "right"
-            group = "walls"
-            shape = "rect"
-            size = [1, 12]
-            pos = [5.5, 0]
-            mass = 0
+            {walls}
 
             [[generate]]
             kind = "grid"
@@ -238,15 +230,9 @@ mod tests {
             rows = 11
             restitution = 0
             friction = 0.4
-
-            [[interact]]
-            a = "balls"
-            b = "balls"
-
-            [[interact]]
-            a = "balls"
-            b = "walls"
-        "#;
+        "#
+        );
+        let text = text.as_str();
         let (mut skipping, mut full) = (world(text), world(text));
         let mut skipped = 0;
         for step in 0..240 {
@@ -272,37 +258,22 @@ mod tests {
     /// broad phase all the same, and pushed out.
     #[test]
     fn an_action_between_steps_makes_the_broad_phase_look_again() {
-        let text = r#"
-            [world]
-            gravity = [0, 0]
-            bounds = [[-100, -100], [100, 100]]
-
-            [[body]]
-            id = "a"
-            group = "balls"
-            shape = "circle"
-            radius = 0.5
-            pos = [0, 0]
-
-            [[body]]
-            id = "b"
-            group = "balls"
-            shape = "circle"
-            radius = 0.5
-            pos = [10, 0]
-
-            [[body]]
-            id = "drifter"
-            group = "balls"
-            shape = "circle"
-            radius = 0.5
-            pos = [-50, 0]
-            vel = [1, 0]
-
-            [[interact]]
-            a = "balls"
-            b = "balls"
-        "#;
+        let ball = |id: &str, pos: [f64; 2], vel: [f64; 2]| {
+            body(
+                id,
+                "balls",
+                "shape = \"circle\"\nradius = 0.5",
+                pos,
+                &format!("vel = {vel:?}"),
+            )
+        };
+        let text = format!(
+            "[world]\ngravity = [0, 0]\nbounds = [[-100, -100], [100, 100]]\n{}{}{}\n[[interact]]\na = \"balls\"\nb = \"balls\"\n",
+            ball("a", [0.0, 0.0], [0.0, 0.0]),
+            ball("b", [10.0, 0.0], [0.0, 0.0]),
+            ball("drifter", [-50.0, 0.0], [1.0, 0.0]),
+        );
+        let text = text.as_str();
         let mut world = world(text);
         for _ in 0..120 {
             world.step();
