@@ -156,11 +156,15 @@ pub struct Slept {
     /// Whether a body put to sleep was stopped (its velocity was not zero): what the
     /// bodies look like changed after the pairs were found.
     pub stopped: bool,
+    /// Whether a body asleep now is `accelerated` (frozen for the next step, it is swept
+    /// there as a static body, not as the pairs found it).
+    pub pulled: bool,
 }
 
 /// After [`rest`]: joins touching bodies into islands and puts resting islands to sleep
 /// or wakes them. `pairs` are candidate pairs of the step (body indices); those touching
-/// join islands. Says how many bodies sleep now, and whether one put to sleep was stopped.
+/// join islands. Says how many bodies sleep now, whether one put to sleep was stopped,
+/// and whether a sleeper is accelerated.
 ///
 /// A sleeping island stops where it stands. One that nothing holds must also not drift:
 /// its centre of mass must move slower than [`FREE_DRIFT`] times `speed`, or stopping it
@@ -247,7 +251,7 @@ pub fn islands(
             *r |= d;
         }
     }
-    let (mut sleeping, mut stopped) = (0, false);
+    let (mut sleeping, mut stopped, mut pulled) = (0, false, false);
     for &i in movers {
         let root = find(&mut parent, i);
         let b = &mut bodies[i as usize];
@@ -263,10 +267,15 @@ pub fn islands(
                 stopped |= b.vel != glam::DVec2::ZERO;
                 b.vel = glam::DVec2::ZERO;
             }
+            pulled = pulled || accelerated(b);
             sleeping += 1;
         }
     }
-    Slept { sleeping, stopped }
+    Slept {
+        sleeping,
+        stopped,
+        pulled,
+    }
 }
 
 #[cfg(test)]

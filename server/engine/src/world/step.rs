@@ -258,15 +258,7 @@ impl World {
         // find every one inside its box, unless a body put to sleep stopped (its box was
         // placed for its velocity) or a sleeper is pulled (frozen for the step, it is
         // swept as a static body: see `pairs::frame`).
-        let pulled_sleeper = || {
-            self.movers.iter().any(|&i| {
-                let b = &self.bodies[i as usize];
-                b.asleep.is_some()
-                    && integrate::acceleration_under(b, self.config.gravity, false)
-                        != glam::DVec2::ZERO
-            })
-        };
-        if self.config.broad_phase == BroadPhase::Grid && !slept.stopped && !pulled_sleeper() {
+        if self.config.broad_phase == BroadPhase::Grid && !slept.stopped && !slept.pulled {
             self.scratch.fresh_pairs = Some(self.fresh_pairs(self.frame + 1));
         }
         self.sleeping
