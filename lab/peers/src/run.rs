@@ -17,12 +17,39 @@ pub struct Run {
     pub mean_ms: f64,
     /// Median ms a step.
     pub median_ms: f64,
+    /// Mean ms a step over each of [`PHASES`] equal parts of the run, in order.
+    pub phases: Vec<f64>,
     pub verdict: Vec<Judgement>,
     pub figures: Figures,
     /// The final state's digest (Ricochet only).
     pub digest: Option<u64>,
     /// The solver's work over the run (Ricochet only).
     pub work: Option<Work>,
+}
+
+/// The parts a run is cut into for the time a step over the run ([`Run::phases`]): a
+/// scene's first part (a block struck, a crowd pressed) may cost far more a step than its
+/// last (the pieces flying apart, the crowd asleep), in one engine and not in another.
+pub const PHASES: usize = 4;
+
+/// The mean of each of [`PHASES`] consecutive parts of `times` (the last part takes what
+/// does not divide evenly); empty for a run of fewer steps than parts.
+fn phases(times: &[f64]) -> Vec<f64> {
+    if times.len() < PHASES {
+        return Vec::new();
+    }
+    let size = times.len() / PHASES;
+    (0..PHASES)
+        .map(|k| {
+            let end = if k + 1 == PHASES {
+                times.len()
+            } else {
+                (k + 1) * size
+            };
+            let part = &times[k * size..end];
+            part.iter().sum::<f64>() / part.len() as f64
+        })
+        .collect()
 }
 
 /// Builds the scene fresh in `engine` (not timed), then steps it for the criteria's steps,
@@ -45,6 +72,7 @@ pub fn run(engine: EngineKind, scene: &Scene) -> Result<Run> {
     let mean_ms = times.iter().sum::<f64>() / steps as f64;
     Ok(Run {
         mean_ms,
+        phases: phases(&times),
         median_ms: median(&mut times),
         verdict: monitor.verdict(),
         figures: monitor.figures().clone(),
@@ -60,6 +88,9 @@ pub struct Outcome {
     pub mean_ms: f64,
     /// Median over the rounds of each run's median ms a step.
     pub median_ms: f64,
+    /// Median over the rounds of each run's mean ms a step in each part of the run
+    /// ([`Run::phases`]).
+    pub phases: Vec<f64>,
     /// The first round's verdict (each engine here is deterministic: every round's is the
     /// same, else `consistent` is false).
     pub verdict: Vec<Judgement>,
@@ -115,6 +146,9 @@ pub fn rounds(scene: &Scene, rounds: usize) -> Result<Vec<Outcome>> {
                 engine,
                 mean_ms: median(&mut runs.iter().map(|r| r.mean_ms).collect::<Vec<_>>()),
                 median_ms: median(&mut runs.iter().map(|r| r.median_ms).collect::<Vec<_>>()),
+                phases: (0..first.phases.len())
+                    .map(|k| median(&mut runs.iter().map(|r| r.phases[k]).collect::<Vec<_>>()))
+                    .collect(),
                 verdict: first.verdict.clone(),
                 consistent,
                 digest: first.digest,
@@ -135,5 +169,20 @@ fn median(xs: &mut [f64]) -> f64 {
         xs[n / 2]
     } else {
         (xs[n / 2 - 1] + xs[n / 2]) / 2.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_is_cut_into_equal_parts_the_last_taking_the_rest() {
+        let times: Vec<f64> = (1..=10).map(f64::from).collect();
+        // Parts of 2, 2, 2 and 4 steps.
+        assert_eq!(phases(&times), vec![1.5, 3.5, 5.5, 8.5]);
+        let even: Vec<f64> = (1..=8).map(f64::from).collect();
+        assert_eq!(phases(&even), vec![1.5, 3.5, 5.5, 7.5]);
+        assert!(phases(&[1.0, 2.0, 3.0]).is_empty());
     }
 }

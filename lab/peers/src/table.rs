@@ -202,9 +202,51 @@ fn page(ctx: &Setup, results: &[SceneResult]) -> String {
         );
     }
     crate::families::table(&mut s, results);
+    phases_table(&mut s, results);
     threads_table(&mut s, results);
     limit_table(&mut s, ctx, results);
     s
+}
+
+/// Each engine's mean time a step in each part of the run, and Box2D's over Ricochet's:
+/// where in a scene's run one engine gains on the other.
+fn phases_table(s: &mut String, results: &[SceneResult]) {
+    let parts = crate::run::PHASES;
+    let _ = writeln!(
+        s,
+        "\n## Over the run\n\n\
+         Each run cut into {parts} parts of equal step counts (the last takes the steps \
+         left over), in order: the mean ms a step of each part (the median over the \
+         rounds), for Ricochet on one thread and Box2D v3, and Box2D's over Ricochet's. \
+         The whole run's ratio (the summary's) is the ratio of the parts' sums, not their \
+         mean: a part that costs both engines more weighs more.\n\n\
+         | scene | Ricochet ms/step, parts 1 to {parts} | Box2D ms/step | Box2D / Ricochet |\n\
+         |---|---|---|---|"
+    );
+    let join = |xs: &[f64], digits: usize| {
+        xs.iter()
+            .map(|x| format!("{x:.digits$}"))
+            .collect::<Vec<_>>()
+            .join(" / ")
+    };
+    for r in results {
+        let (ours, theirs) = (
+            &r.outcome(EngineKind::Ricochet).phases,
+            &r.outcome(EngineKind::Box2d).phases,
+        );
+        if ours.len() != parts || theirs.len() != parts {
+            continue;
+        }
+        let ratios: Vec<f64> = theirs.iter().zip(ours).map(|(b, o)| b / o).collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} |",
+            r.name,
+            join(ours, 3),
+            join(theirs, 3),
+            join(&ratios, 2)
+        );
+    }
 }
 
 /// Ricochet on two threads against one: the speed-up and whether the final states agree
@@ -388,6 +430,7 @@ fn write_csv(path: &Path, ctx: &Setup, results: &[SceneResult]) -> Result<()> {
         head.push(name.to_string());
         head.push(format!("{name}_limit"));
     }
+    head.extend((1..=crate::run::PHASES).map(|k| format!("part{k}_mean_ms")));
     w.write_record(&head)?;
     for r in results {
         for o in &r.outcomes {
@@ -421,6 +464,10 @@ fn write_csv(path: &Path, ctx: &Setup, results: &[SceneResult]) -> Result<()> {
                     None => row.extend([String::new(), String::new()]),
                 }
             }
+            row.extend(
+                (0..crate::run::PHASES)
+                    .map(|k| o.phases.get(k).map_or(String::new(), |x| format!("{x:.6}"))),
+            );
             w.write_record(&row)?;
         }
     }
