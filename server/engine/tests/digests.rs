@@ -143,7 +143,7 @@ const EXPECTED: &[(&str, &str)] = &[
     ),
     (
         "suite/crowded-box",
-        "30562c06453a631085753ab6ee2dfe8d69a4279a0c8b19c5260f413e0ba694b5",
+        "a6bc0513e141ff8c0e72f78658e647d8b9407bcda0a73115bfb30ac15b106b9f",
     ),
     (
         "suite/far-pyramid",

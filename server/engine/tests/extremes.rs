@@ -552,3 +552,130 @@ fn soft_contacts_separate_without_launching_and_hold_a_stack() {
     assert!(r.deepest < 0.02, "penetration {}", r.deepest);
     assert!(r.energy < 1e-6, "kinetic energy {}", r.energy);
 }
+
+/// The deepest overlap between two dynamic bodies of `w`, in the smaller one's size
+/// (circles by their centres' distance, anything else by its bounding box).
+fn deepest_overlap(w: &World) -> f64 {
+    let bodies: Vec<_> = w
+        .bodies()
+        .iter()
+        .filter(|b| b.inv_mass > 0.0 || b.asleep.is_some())
+        .collect();
+    let mut deepest = 0.0_f64;
+    for (k, a) in bodies.iter().enumerate() {
+        for b in &bodies[k + 1..] {
+            let (ha, hb) = (a.shape.half_extents(), b.shape.half_extents());
+            let size = 2.0 * ha.min_element().min(hb.min_element());
+            let depth = match (&a.shape, &b.shape) {
+                (
+                    ricochet_engine::geometry::Shape::Circle { radius: ra },
+                    ricochet_engine::geometry::Shape::Circle { radius: rb },
+                ) => ra + rb - (b.pos - a.pos).length(),
+                _ => {
+                    let open = ha + hb - (b.pos - a.pos).abs();
+                    open.min_element()
+                }
+            };
+            deepest = deepest.max(depth / size);
+        }
+    }
+    deepest
+}
+
+/// A crowd packed past what its container holds cannot open its overlaps: its push-out
+/// only moves them about, a body at a time drifting faster than `sleep_speed` allows (160
+/// circles of 0.75 at 96% of a box 17 wide, as the crowds family draws them: awake to
+/// the end of 600 steps when only a body's drift counts). It sleeps all the same
+/// (jammed: overlaps that do not open), its overlaps left as they are.
+#[test]
+fn a_crowd_packed_past_its_container_sleeps_jammed() {
+    let (r, count) = (0.75_f64, 160);
+    let side = (count as f64 * std::f64::consts::PI * r * r / 0.96).sqrt();
+    let (half, t) = (side / 2.0, 0.334);
+    let mut text = format!(
+        "[world]\ngravity = [0.0, 0.0]\nbounds = [[-{side}, -{side}], [{side}, {side}]]\n\n"
+    );
+    for (id, size, pos) in [
+        ("floor", [side + 2.0 * t, t], [0.0, -half - t / 2.0]),
+        ("roof", [side + 2.0 * t, t], [0.0, half + t / 2.0]),
+        ("left", [t, side + 2.0 * t], [-half - t / 2.0, 0.0]),
+        ("right", [t, side + 2.0 * t], [half + t / 2.0, 0.0]),
+    ] {
+        text.push_str(&format!(
+            "[[body]]\nid = \"{id}\"\ngroup = \"walls\"\nshape = \"rect\"\n\
+             size = {size:?}\npos = {pos:?}\nmass = 0.0\nfriction = 0.5\n\n"
+        ));
+    }
+    // On a square grid as many as fit, the rest on a second grid between them.
+    let per_row = (side / (2.0 * r)).floor() as usize;
+    let pitch = side / per_row as f64;
+    let mut placed = 0;
+    'grid: for shift in [pitch / 2.0, pitch] {
+        for i in 0..per_row {
+            for j in 0..per_row {
+                if placed == count {
+                    break 'grid;
+                }
+                let (x, y) = (
+                    -half + shift + i as f64 * pitch,
+                    -half + shift + j as f64 * pitch,
+                );
+                if x + r * 0.5 > half || y + r * 0.5 > half {
+                    continue;
+                }
+                text.push_str(&format!(
+                    "[[body]]\nid = \"c/{placed}\"\ngroup = \"crowd\"\nshape = \"circle\"\n\
+                     radius = {r}\npos = [{x}, {y}]\nrestitution = 0.2\nfriction = 0.2\n\n"
+                ));
+                placed += 1;
+            }
+        }
+    }
+    text.push_str("[[interact]]\na = \"crowd\"\nb = \"crowd\"\n\n[[interact]]\na = \"crowd\"\nb = \"walls\"\n");
+    let mut w =
+        scene::parse(&text, Path::new("jammed.toml"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    let mut slept = None;
+    for step in 1..=600 {
+        w.step();
+        if w.stats().sleeping == count as u64 {
+            slept = Some(step);
+            break;
+        }
+    }
+    let step = slept.expect("the crowd sleeps within 10 s");
+    let deepest = deepest_overlap(&w);
+    assert!(
+        deepest > 0.05,
+        "asleep at step {step} still overlapped: {deepest}"
+    );
+}
+
+/// Without gravity a row of boxes started 40% into each other is pushed open from its two
+/// ends (its middle boxes, pushed both ways, wait): overlaps that open are not jammed, so
+/// it sleeps only once they are open.
+#[test]
+fn a_row_started_overlapped_without_gravity_sleeps_only_once_opened() {
+    let mut text = "[world]\ngravity = [0.0, 0.0]\nbounds = [[-40, -40], [40, 40]]\n\n".to_string();
+    for i in 0..16 {
+        text.push_str(&format!(
+            "[[body]]\nid = \"box/{i}\"\ngroup = \"boxes\"\nshape = \"rect\"\n\
+             size = [1.0, 1.0]\npos = [{}, 0.0]\nrestitution = 0.0\nfriction = 0.5\n\n",
+            0.6 * i as f64
+        ));
+    }
+    text.push_str("[[interact]]\na = \"boxes\"\nb = \"boxes\"\n");
+    let mut w =
+        scene::parse(&text, Path::new("opened.toml"), &[]).unwrap_or_else(|e| panic!("{e}"));
+    assert!(deepest_overlap(&w) > 0.39, "the row starts overlapped");
+    let mut slept = None;
+    for step in 1..=900 {
+        w.step();
+        if w.stats().sleeping == 16 {
+            slept = Some(step);
+            break;
+        }
+    }
+    let step = slept.expect("the row sleeps within 15 s");
+    let deepest = deepest_overlap(&w);
+    assert!(deepest < 0.01, "asleep at step {step} overlapped {deepest}");
+}

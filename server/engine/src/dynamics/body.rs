@@ -171,6 +171,11 @@ pub struct Body {
     /// keep it awake).
     #[serde(default)]
     pub rest_anchor: DVec2,
+    /// The deepest penetration of its contacts, averaged over the world's `sleep_delay`
+    /// since its rest began (see [`crate::dynamics::sleep::rest`]): a body pushed out of
+    /// overlaps it cannot leave (jammed) rests however the push-out shuffles it.
+    #[serde(default)]
+    pub rest_depth: f64,
     /// Set while the body sleeps (see [`crate::dynamics::sleep`]).
     pub asleep: Option<Sleeper>,
 }
@@ -211,6 +216,7 @@ impl Body {
             key: BodyKey(0),
             rest_time: 0.0,
             rest_anchor: pos,
+            rest_depth: 0.0,
             asleep: None,
         }
     }

@@ -299,6 +299,10 @@ pub struct SolverBuffers {
     /// The contacts by block, then the boundary's (see [`blocks`]).
     #[serde(skip)]
     buckets: Vec<Vec<Contact>>,
+    /// Each mover's deepest penetration among the last frame's contacts, at its start
+    /// (in the order of the frame's movers; 0 for none).
+    #[serde(skip)]
+    depths: Vec<f64>,
     /// The helper threads of the passes, kept from frame to frame (see [`team`]).
     #[serde(skip)]
     crew: team::Crew,
@@ -359,6 +363,12 @@ pub struct SolverBuffers {
 }
 
 impl SolverBuffers {
+    /// Each mover's deepest penetration among the last frame's contacts, at the frame's
+    /// start, in the order of the movers the frame was given (empty before a frame).
+    pub fn depths(&self) -> &[f64] {
+        &self.depths
+    }
+
     /// Checks buffers read back from a checkpoint against the world's `movers`: blocks
     /// kept for them (not cut again at the next frame) name blocks that exist. Names what
     /// is wrong.
@@ -632,9 +642,11 @@ pub fn solve_frame(
         slotted,
         buckets,
         pushed,
+        depths,
         ..
     } = &mut *buffers;
     passes::store(bodies, pairs, movers, sb, slotted, buckets, pushed, flagged);
+    still::depths(movers.len(), buckets, depths);
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
     }

@@ -4,7 +4,8 @@
 //! After each step, touching dynamic bodies are joined into islands. An island whose
 //! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds, none straying
 //! further than that speed allows from its recent places (in its own sizes if it is
-//! smaller than a unit), goes to sleep:
+//! smaller than a unit) unless jammed (its overlaps opening no faster than that, see
+//! [`rest`]), goes to sleep:
 //! velocities zeroed, no integration, and the solvers see its bodies as static (their
 //! inverse mass is set aside during a step). An island that nothing holds (no static body,
 //! no sleeper, no gravity) must also have a still centre of mass: a free body keeps its
@@ -60,19 +61,29 @@ pub(crate) fn find(parent: &mut [u32], mut i: u32) -> u32 {
 /// Updates rest times, before the islands. `may_sleep` says which bodies may rest at all
 /// (the demo's steered bodies never do); `start` is each mover's place at the start of the
 /// step (a body's rest begins there; one that strays from its recent places further than
-/// `speed` allows over `delay` is not at rest). Returns whether islands are needed: a body
+/// `speed` allows over `delay` is not at rest, unless it is jammed: `depths` are the
+/// movers' deepest overlaps of the step, in their order, and `accelerated` says which
+/// bodies gravity pulls, which never are). Returns whether islands are needed: a body
 /// sleeps, or has rested long enough to. If not, none can sleep or wake, and the caller
 /// need not find the touching pairs.
+#[allow(clippy::too_many_arguments)]
 pub fn rest(
     bodies: &mut [Body],
     movers: &[u32],
     may_sleep: impl Fn(usize) -> bool,
     start: &[(u32, glam::DVec2)],
+    depths: &[f64],
+    accelerated: impl Fn(&Body) -> bool,
     dt: f64,
     speed: f64,
     delay: f64,
 ) -> bool {
     let mut islands_matter = false;
+    let depths = if depths.len() == movers.len() {
+        depths
+    } else {
+        &[]
+    };
     for (k, &i) in movers.iter().enumerate() {
         let b = &mut bodies[i as usize];
         if b.asleep.is_some() {
@@ -93,11 +104,22 @@ pub fn rest(
         // overlapped moves it slower than `speed` but not than that).
         let size = 2.0 * b.shape.half_extents().min_element();
         let reach = speed * size.min(1.0) * delay.max(dt);
+        let depth = depths.get(k).copied().unwrap_or(0.0);
         if b.rest_time == 0.0 {
             b.rest_anchor = from.unwrap_or(b.pos);
+            b.rest_depth = depth;
         }
-        b.rest_anchor += (b.pos - b.rest_anchor) * (dt / delay.max(dt));
-        let still = from.is_some() && shorter(b.pos - b.rest_anchor, reach);
+        let follow = dt / delay.max(dt);
+        b.rest_anchor += (b.pos - b.rest_anchor) * follow;
+        b.rest_depth += (depth - b.rest_depth) * follow;
+        // Jammed: overlapped deeper than a hundredth of its size, its overlaps opening no
+        // faster than `speed` (its depth's lag behind its average, as its place's behind
+        // the anchor), nothing accelerating it: a crowd packed past what its container
+        // holds, whose push-out only moves its overlaps about. Such a body rests wherever
+        // the push-out takes it; one whose overlaps the push-out opens does not.
+        let opening = b.rest_depth - depth;
+        let jammed = depth > JAM_DEPTH * size && opening < reach && !accelerated(b);
+        let still = from.is_some() && (jammed || shorter(b.pos - b.rest_anchor, reach));
         b.rest_time = if may_sleep(i as usize) && shorter(b.vel, speed) && still {
             b.rest_time + dt
         } else {
@@ -147,6 +169,10 @@ fn touching(a: &Body, b: &Body) -> bool {
 /// The share of `sleep_speed` below which an island that touches no static body counts as
 /// not drifting (see [`islands`]).
 pub const FREE_DRIFT: f64 = 0.01;
+
+/// The depth of overlap, in a body's size, past which a body whose overlaps do not open is
+/// jammed (see [`rest`]).
+pub const JAM_DEPTH: f64 = 0.01;
 
 /// What [`islands`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

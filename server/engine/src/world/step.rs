@@ -219,11 +219,22 @@ impl World {
         let may_sleep =
             |i: usize| matches!(infos[i].behavior, Behavior::None | Behavior::DumbMinion);
         let start = &self.scratch.step_start;
+        let config = &self.config;
+        let accelerated = |b: &crate::dynamics::body::Body| {
+            integrate::acceleration(b, config) != glam::DVec2::ZERO
+        };
+        let depths = if config.solver == Solver::Impulses {
+            self.solver_buffers.depths()
+        } else {
+            &[]
+        };
         if !sleep::rest(
             &mut self.bodies,
             &self.movers,
             may_sleep,
             start,
+            depths,
+            accelerated,
             dt,
             speed,
             delay,

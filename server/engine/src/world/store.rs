@@ -131,6 +131,7 @@ impl World {
             key,
             rest_time: 0.0,
             rest_anchor: def.pos,
+            rest_depth: 0.0,
             asleep: None,
         });
         self.groups[group as usize].members.push(index);

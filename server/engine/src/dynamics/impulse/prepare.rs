@@ -72,6 +72,7 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         crew: _,
         last_contacts: _,
         times: _,
+        depths: _,
     } = buffers;
     if slot.len() < bodies.len() {
         slot.resize(bodies.len(), UNSLOTTED);
