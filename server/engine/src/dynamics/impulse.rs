@@ -645,8 +645,9 @@ pub fn solve_frame(
         depths,
         ..
     } = &mut *buffers;
-    passes::store(bodies, pairs, movers, sb, slotted, buckets, pushed, flagged);
-    still::depths(movers.len(), buckets, depths);
+    passes::store(
+        bodies, pairs, movers, sb, slotted, buckets, pushed, flagged, depths,
+    );
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
     }

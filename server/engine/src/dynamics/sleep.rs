@@ -4,8 +4,8 @@
 //! After each step, touching dynamic bodies are joined into islands. An island whose
 //! bodies all moved slower than `sleep_speed` for `sleep_delay` seconds, none straying
 //! further than that speed allows from its recent places (in its own sizes if it is
-//! smaller than a unit) unless jammed (its overlaps opening no faster than that, see
-//! [`rest`]), goes to sleep:
+//! smaller than a unit) unless jammed (its overlaps opening no faster than twice that,
+//! see [`rest`]), goes to sleep:
 //! velocities zeroed, no integration, and the solvers see its bodies as static (their
 //! inverse mass is set aside during a step). An island that nothing holds (no static body,
 //! no sleeper, no gravity) must also have a still centre of mass: a free body keeps its
@@ -113,13 +113,15 @@ pub fn rest(
         b.rest_anchor += (b.pos - b.rest_anchor) * follow;
         b.rest_depth += (depth - b.rest_depth) * follow;
         // Jammed: overlapped deeper than a hundredth of its size, its overlaps opening no
-        // faster than `speed` (its depth's lag behind its average, as its place's behind
-        // the anchor), nothing accelerating it: a crowd packed past what its container
-        // holds, whose push-out only moves its overlaps about. Such a body rests wherever
-        // the push-out takes it; one whose overlaps the push-out opens does not.
-        let opening = b.rest_depth - depth;
-        let jammed = depth > JAM_DEPTH * size && opening < reach && !accelerated(b);
-        let still = from.is_some() && (jammed || shorter(b.pos - b.rest_anchor, reach));
+        // faster than twice `speed` (its depth's lag behind its average, as its place's
+        // behind the anchor; twice, as its deepest overlap drops at once when another
+        // contact becomes its deepest), nothing accelerating it: a crowd packed past what
+        // its container holds, whose push-out only moves its overlaps about. Such a body
+        // rests wherever the push-out takes it; one whose overlaps the push-out opens does
+        // not. (Looked at only for a body that strayed: most bodies at rest did not.)
+        let jammed =
+            || depth > JAM_DEPTH * size && b.rest_depth - depth < 2.0 * reach && !accelerated(b);
+        let still = from.is_some() && (shorter(b.pos - b.rest_anchor, reach) || jammed());
         b.rest_time = if may_sleep(i as usize) && shorter(b.vel, speed) && still {
             b.rest_time + dt
         } else {

@@ -475,9 +475,9 @@ pub(super) fn collisions(
     }
 }
 
-/// The movers' velocities and moves back into the world, each pair's impulses kept for
-/// the next frame, and the bodies a contact pushed flagged collided (listed in `flagged`).
-/// `slotted` names each solver body's world body; `pushed` is reused.
+/// The movers' velocities and moves back into the world, each pair's impulses kept, the
+/// bodies a contact pushed flagged collided (in `flagged`), mover `k`'s deepest overlap at
+/// the frame's start in `depths[k]`. `slotted` names each solver body's world body.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn store(
     bodies: &mut [Body],
@@ -488,19 +488,28 @@ pub(super) fn store(
     buckets: &[Vec<Contact>],
     pushed: &mut Vec<bool>,
     flagged: &mut Vec<u32>,
+    depths: &mut Vec<f64>,
 ) {
     for (&i, s) in movers.iter().zip(sb.iter()) {
         let body = &mut bodies[i as usize];
         body.vel = s.vel;
         body.pos += s.delta;
     }
-    // Which solver bodies a contact pushed, marked by slot (a small array) rather than on
-    // the world's bodies, which are then visited once each.
+    // Which solver bodies a contact pushed, by slot (then each world body visited once).
     pushed.clear();
     pushed.resize(sb.len(), false);
     // Whether any body of a contact sleeps (looked up per contact only then).
     let sleepers = slotted.iter().any(|&i| bodies[i as usize].asleep.is_some());
+    depths.clear();
+    depths.resize(movers.len(), 0.0);
     for c in buckets.iter().flatten() {
+        if c.gap < 0.0 {
+            for s in [c.a as usize, c.b as usize] {
+                if let Some(d) = depths.get_mut(s) {
+                    *d = d.max(-c.gap);
+                }
+            }
+        }
         let pair = &mut pairs[c.pair as usize];
         pair.normal = c.normal;
         // A sleeper is static to the step: what its contact took against it is not the

@@ -101,20 +101,3 @@ impl Pushing {
         }
     }
 }
-
-/// Each of the frame's `moving` movers' deepest penetration among `buckets`' contacts, at
-/// the frame's start, into `depths` (0 for none): what the frame left to push out. A mover
-/// is solver body `k` for the `k`-th mover.
-pub(super) fn depths(moving: usize, buckets: &[Vec<Contact>], depths: &mut Vec<f64>) {
-    depths.clear();
-    depths.resize(moving, 0.0);
-    for c in buckets.iter().flatten() {
-        if c.gap < 0.0 {
-            for s in [c.a as usize, c.b as usize] {
-                if let Some(d) = depths.get_mut(s) {
-                    *d = d.max(-c.gap);
-                }
-            }
-        }
-    }
-}
