@@ -215,13 +215,16 @@ pub fn islands(
     // bodies changes no island's fate (both islands are restless already), so their pair
     // is not looked at: in a pile being pushed apart, most pairs.
     let restless = |b: &Body| b.asleep.is_none() && !rested(b.rest_time, delay, dt);
+    // A pair already in one island changes nothing either: in a crowd packed tight, most
+    // pairs close a loop, and whether they touch is not worth working out. (Each island's
+    // root is its lowest body whatever order the pairs come in.)
     for (i, j) in pairs.clone() {
         let (a, b) = (&bodies[i as usize], &bodies[j as usize]);
-        if a.is_static() || b.is_static() || (restless(a) && restless(b)) || !touching(a, b) {
+        if a.is_static() || b.is_static() || (restless(a) && restless(b)) {
             continue;
         }
         let (ri, rj) = (find(&mut parent, i), find(&mut parent, j));
-        if ri != rj {
+        if ri != rj && touching(a, b) {
             parent[ri.max(rj) as usize] = ri.min(rj);
         }
     }
