@@ -27,9 +27,10 @@
 //! gets a box that moves with it instead ([`fat`]), and two such boxes are a pair only if
 //! they meet at one time, not wherever their sweeps cross (impacts seed 5, a block of 289
 //! circles struck apart, kept 9 600 pairs for 400 contacts with every box standing, 3 700
-//! with every box fit to fly moving, and a third of the pairs later in the run). The frame is the median velocity of the bodies in play, taken when that halves
-//! the travel summed over them (at a rebuild, or in a step that moved a quarter of the
-//! boxes); most worlds keep the frame at rest. In a moving frame the static bodies move
+//! with every box fit to fly moving, and a third of the pairs later in the run). The frame
+//! is the median velocity of the bodies in play, taken when that halves the travel summed
+//! over them (at a rebuild, or in a step that moved a quarter of the boxes); most worlds
+//! keep the frame at rest. In a moving frame the static bodies move
 //! too, and are looked at every step. Under gravity a body may also be stopped within a
 //! step by a third one (a falling box landing on a pile, its neighbour still falling), so
 //! the box of a body gravity pulls is swept back to where it would stop as well. A rain
@@ -40,7 +41,7 @@
 //! may differ by.
 //!
 //! Pairs are kept sorted by body index (`a < b`), so the order, and with it every result,
-//! is deterministic: the pairs are exactly the eligible pairs whose fat boxes overlap,
+//! is deterministic: the pairs are exactly the eligible pairs whose fat boxes meet,
 //! whatever a body's tier or the tree's shape. They live in [`Contacts`], the one home of
 //! the solver's pairs and their warm starts whatever the broad phase: the pair set keeps
 //! them up to date in place, the other broad phases refill them each step
@@ -598,11 +599,12 @@ impl PairSet {
         };
     }
 
-    /// Pushes to `found` every eligible pair of `i` whose fat boxes overlap, each once: a
-    /// pair of two searched bodies from the smaller's search. With `new_only`, after `i`
+    /// Pushes to `found` every eligible pair of `i` whose fat boxes meet, each once: a pair
+    /// of two searched bodies from the smaller's search. Counts in `crowd` the boxes it
+    /// crossed. With `new_only`, after `i`
     /// and the other searched bodies moved (their boxes before in `prior`), only the pairs
-    /// whose boxes did not overlap before: the others are kept already (the pairs are
-    /// exactly the eligible pairs whose boxes overlap).
+    /// whose boxes did not meet before: the others are kept already (the pairs are exactly
+    /// the eligible pairs whose boxes meet).
     fn neighbours(&mut self, bodies: &[Body], i: u32, new_only: bool, dt: f64) {
         let fi = self.fat[i as usize];
         if !fi.placed {
@@ -651,9 +653,9 @@ impl PairSet {
         }
     }
 
-    /// Drops the pairs whose boxes no longer overlap and adds those in `found` that are not
+    /// Drops the pairs whose boxes no longer meet and adds those in `found` that are not
     /// kept yet, keeping `pairs` sorted, in one pass. Only a searched body's box changed: a
-    /// pair of two others still overlaps. A pair is looked at alone only when a searched
+    /// pair of two others still meets. A pair is looked at alone only when a searched
     /// body is in it or a new pair goes before it; the runs between are copied whole (on a
     /// struck block, a few dozen new pairs among thousands kept, the pass took a tenth of
     /// the step copying pair by pair).

@@ -43,19 +43,20 @@ const SWEPT_STEPS_FREE: f64 = 8.0;
 /// meet at one time, so a long life costs a query the hulls it crosses, not the contact
 /// search pairs. On impacts seed 5 (289 circles struck apart) every life fixed at 8, 32
 /// or 64 steps gave 0.071, 0.068 and 0.062 ms a step (the same at 128); the suite's smash
-/// 0.130, 0.120 and 0.115.
+/// 0.130, 0.120 and 0.115 (a throwaway stepping example, 5 alternated runs).
 pub(super) const MOVING_STEPS: f64 = 64.0;
 
 /// How many other boxes a body's box must have crossed when last placed (a moving box's
 /// hull counted for the share of its life a standing box's sweep lasts) for the body to
 /// get a box moving with it. A moving box prunes pairs of bodies flying apart, as in a
 /// crowd struck apart, but is left at any turn, and its test in time costs more than an
-/// overlap: in a sparse gas, where few boxes cross, it saves no pair and costs a step 12
-/// to 20% (the elastic family's gases of 700 to 840 circles at 4% of their box). Mean ms
-/// a step with every box fit to fly moving / at 4 or more crossed / standing only (3
-/// alternated runs): impacts seed 5 0.057 / 0.058 / 0.081, the smash 0.116 / 0.121 /
-/// 0.136, elastic seed 9 0.122 / 0.112 / 0.104, elastic seed 1 0.144 / 0.141 / 0.130. At
-/// 6 the elastic seeds lose 3 to 6% and the smash gains only 6%.
+/// overlap: in a gas, whose bodies fly every way, it saves no pair and costs a step 12 to
+/// 20% (the elastic family's gases of 711 to 836 circles filling a sixth of their box).
+/// Mean ms a step with every box fit to fly moving / at 4 or more crossed / standing only
+/// (a throwaway stepping example, 3 alternated runs): impacts seed 5 0.057 / 0.058 /
+/// 0.081, the smash 0.116 / 0.121 / 0.136, elastic seed 9 0.122 / 0.112 / 0.104, elastic
+/// seed 1 0.144 / 0.141 / 0.130. At 6 the elastic seeds lose 3 to 6% and the smash gains
+/// only 6%.
 pub(super) const CROWDED: u16 = 4;
 
 pub(super) fn swept_steps(body: &Body, gravity: DVec2) -> f64 {
