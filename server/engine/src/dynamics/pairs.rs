@@ -53,7 +53,7 @@ use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
-use fat::{meet, Fat};
+use fat::{cross, meet, Fat};
 use frame::{fixed, pulled, reach, sideways, swept_steps, velocity, CROWDED, MOVING_STEPS};
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
@@ -624,12 +624,7 @@ impl PairSet {
         let mut crossed = 0u32;
         self.index.query(hull.min, hull.max, |j| {
             let fj = &fat[j as usize];
-            if j != i
-                && fi.min.x <= fj.max.x
-                && fj.min.x <= fi.max.x
-                && fi.min.y <= fj.max.y
-                && fj.min.y <= fi.max.y
-            {
+            if j != i && cross(&fi, fj) {
                 crossed += 1;
             }
             if (j < i && searching[j as usize])

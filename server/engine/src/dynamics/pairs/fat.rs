@@ -118,11 +118,13 @@ impl Fat {
 /// overlap at one time within both their lives.
 #[inline]
 pub(super) fn meet(p: &Fat, q: &Fat) -> bool {
-    p.min.x <= q.max.x
-        && q.min.x <= p.max.x
-        && p.min.y <= q.max.y
-        && q.min.y <= p.max.y
-        && (!(p.moves() || q.moves()) || meet_in_time(p, q))
+    cross(p, q) && (!(p.moves() || q.moves()) || meet_in_time(p, q))
+}
+
+/// Whether two fat boxes' hulls overlap (what the index finds, before any test in time).
+#[inline]
+pub(super) fn cross(p: &Fat, q: &Fat) -> bool {
+    p.min.x <= q.max.x && q.min.x <= p.max.x && p.min.y <= q.max.y && q.min.y <= p.max.y
 }
 
 /// Whether two boxes, one moving at least, overlap at one time within both their lives.

@@ -544,13 +544,10 @@ fn spray(spacing: f64, speed: f64, gravity: DVec2) -> (u64, usize, usize) {
             set.update(&mut contacts, &bodies, 1, &[(0, 0)], &movers, dt);
         }
         // The pairs whose boxes' hulls overlap, against those kept.
-        let hulls = set.fat.iter().map(|f| f.hull()).collect::<Vec<_>>();
-        let crossing = (0..hulls.len())
-            .flat_map(|i| (i + 1..hulls.len()).map(move |j| (i, j)))
-            .filter(|&(i, j)| {
-                let (p, q) = (&hulls[i], &hulls[j]);
-                p.min.x <= q.max.x && q.min.x <= p.max.x && p.min.y <= q.max.y && q.min.y <= p.max.y
-            })
+        let fat = &set.fat;
+        let crossing = (0..fat.len())
+            .flat_map(|i| (i + 1..fat.len()).map(move |j| (i, j)))
+            .filter(|&(i, j)| fat::cross(&fat[i], &fat[j]))
             .count();
         (set.reinserted - placed, contacts.pairs.len(), crossing)
     }
