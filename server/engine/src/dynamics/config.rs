@@ -216,9 +216,9 @@ pub struct WorldConfig {
     pub sleeping: bool,
     /// Speed below which a body counts as at rest (units/s). A body at rest also stays
     /// within `sleep_speed * sleep_delay` of its recent places, measured in its own sizes
-    /// if it is smaller than a unit, unless it is jammed: overlapped by more than a
-    /// hundredth of its size, its overlaps opening no faster than twice `sleep_speed`, nothing
-    /// accelerating it (a crowd packed past what its container holds).
+    /// if it is smaller than a unit, unless it is jammed: overlapped by more than a fifth
+    /// of a percent of its size, its overlaps opening no faster than twice `sleep_speed`,
+    /// nothing accelerating it (a crowd packed past what its container holds).
     pub sleep_speed: f64,
     /// Seconds at rest before an island sleeps.
     pub sleep_delay: f64,

@@ -10,7 +10,8 @@
 //! inverse mass is set aside during a step). An island that nothing holds (no static body,
 //! no sleeper, no gravity) must also have a still centre of mass: a free body keeps its
 //! momentum. An island with a moving body in it (a body
-//! that hit a sleeper joins its island) wakes whole. Bodies driven by a behaviour (hero,
+//! that hit a sleeper joins its island) wakes whole, its sleepers keeping the time they
+//! rested (the wake itself moved none of them). Bodies driven by a behaviour (hero,
 //! minions, dye packs) never sleep; actions that move bodies or change the world's
 //! parameters wake everything.
 
@@ -39,7 +40,7 @@ pub fn thaw(bodies: &mut [Body], movers: &[u32]) {
     }
 }
 
-/// Wakes a body.
+/// Wakes a body and starts its rest again (an action moved it or changed the world).
 pub fn wake(body: &mut Body) {
     if let Some(s) = body.asleep.take() {
         body.inv_mass = s.inv_mass;
@@ -112,7 +113,7 @@ pub fn rest(
         let follow = dt / delay.max(dt);
         b.rest_anchor += (b.pos - b.rest_anchor) * follow;
         b.rest_depth += (depth - b.rest_depth) * follow;
-        // Jammed: overlapped deeper than a hundredth of its size, its overlaps opening no
+        // Jammed: overlapped deeper than `JAM_DEPTH` of its size, its overlaps opening no
         // faster than twice `speed` (its depth's lag behind its average, as its place's
         // behind the anchor; twice, as its deepest overlap drops at once when another
         // contact becomes its deepest), nothing accelerating it: a crowd packed past what
@@ -173,8 +174,11 @@ fn touching(a: &Body, b: &Body) -> bool {
 pub const FREE_DRIFT: f64 = 0.01;
 
 /// The depth of overlap, in a body's size, past which a body whose overlaps do not open is
-/// jammed (see [`rest`]).
-pub const JAM_DEPTH: f64 = 0.01;
+/// jammed (see [`rest`]): a fifth of a percent, twenty times the push-out's slop. At a
+/// hundredth, the bodies at the edge of a jammed crowd, overlapped 0.3% by the squeeze
+/// their neighbours pass on and moved by it about as fast as `sleep_speed` allows, kept
+/// starting their rest again (crowds seed 5 slept whole from frame 157, not 74).
+pub const JAM_DEPTH: f64 = 0.002;
 
 /// What [`islands`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -287,8 +291,14 @@ pub fn islands(
         let root = find(&mut parent, i);
         let b = &mut bodies[i as usize];
         if unrested[root as usize] {
-            if b.asleep.is_some() {
-                wake(b);
+            // Woken because a restless body joined its island, a sleeper keeps its rest
+            // time: it has not moved. If the wake moves it, `rest` starts its rest again;
+            // if not, it sleeps again with its island as soon as the newcomer has rested.
+            // (Started again on every wake, the sleepers at the edge of a jammed crowd
+            // were woken by its shuffling neighbours faster than they could all rest
+            // together: crowds seed 0 slept whole from frame 150, seed 2 never.)
+            if let Some(s) = b.asleep.take() {
+                b.inv_mass = s.inv_mass;
             }
         } else {
             if b.asleep.is_none() {
@@ -312,7 +322,56 @@ pub fn islands(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Shape;
     use proptest::prelude::*;
+
+    /// A row of three unit boxes side by side without gravity: the first two asleep, the
+    /// third come to rest against them but not yet for `delay`. Its island wakes; the
+    /// sleepers keep their rest, and the row sleeps whole as soon as the newcomer has
+    /// rested, not `delay` after the wake.
+    #[test]
+    fn sleepers_woken_by_a_newcomer_keep_their_rest_and_sleep_again_with_it() {
+        let (speed, delay, dt) = (0.05, 0.5, 1.0 / 60.0);
+        let unit = Shape::Rect {
+            half: DVec2::splat(0.5),
+        };
+        let mut bodies: Vec<Body> = (0..3)
+            .map(|k| Body::for_test(unit, DVec2::new(k as f64, 0.0), DVec2::ZERO, 1.0))
+            .collect();
+        for b in &mut bodies[..2] {
+            b.rest_time = delay + 4.0 * dt;
+            b.asleep = Some(Sleeper { inv_mass: 1.0 });
+        }
+        let movers = [0, 1, 2];
+        let pairs = [(0, 1), (1, 2)];
+        let islands = |bodies: &mut [Body]| {
+            islands(
+                bodies,
+                &movers,
+                pairs.iter().copied(),
+                |_| false,
+                speed,
+                delay,
+                dt,
+            )
+        };
+        assert_eq!(
+            islands(&mut bodies).sleeping,
+            0,
+            "the newcomer wakes the row"
+        );
+        for b in &bodies[..2] {
+            assert!(b.asleep.is_none() && b.inv_mass == 1.0);
+            assert!(rested(b.rest_time, delay, dt), "rest kept: {}", b.rest_time);
+        }
+        bodies[2].rest_time = delay;
+        let slept = islands(&mut bodies);
+        assert_eq!(slept.sleeping, 3, "asleep as soon as the newcomer rested");
+        assert!(bodies.iter().all(|b| b.asleep.is_some()));
+        // An action that wakes a body starts its rest again.
+        wake(&mut bodies[0]);
+        assert_eq!(bodies[0].rest_time, 0.0);
+    }
 
     proptest! {
         /// `shorter` answers as the square root does: on vectors and bounds of any scale,
