@@ -218,7 +218,9 @@ pub struct WorldConfig {
     /// within `sleep_speed * sleep_delay` of its recent places, measured in its own sizes
     /// if it is smaller than a unit, unless it is jammed: overlapped by more than a fifth
     /// of a percent of its size, its overlaps opening no faster than twice `sleep_speed`,
-    /// nothing accelerating it (a crowd packed past what its container holds).
+    /// nothing accelerating it (a crowd packed past what its container holds). A crowd
+    /// whose overlaps open slower than that sleeps as overlapped as it is: lower
+    /// `sleep_speed` to have it opened first.
     pub sleep_speed: f64,
     /// Seconds at rest before an island sleeps.
     pub sleep_delay: f64,
