@@ -53,7 +53,7 @@ use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
-use fat::{cross, meet, Fat};
+use fat::{cross, encloses, meet, Fat};
 use frame::{fixed, pulled, reach, sideways, swept_steps, velocity, CROWDED, MOVING_STEPS};
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
@@ -319,10 +319,7 @@ impl PairSet {
                 f.holds(min, max, step, r, self.clock, dt)
             } else {
                 let (min, max) = self.swept(body, min, max, 1.0, dt);
-                min.x - r >= f.min.x
-                    && min.y - r >= f.min.y
-                    && max.x + r <= f.max.x
-                    && max.y + r <= f.max.y
+                encloses(f.hull(), min, max, r)
             };
             if held {
                 continue;

@@ -102,16 +102,19 @@ impl Fat {
         now: f64,
         dt: f64,
     ) -> bool {
-        let inside = |f: Aabb, min: DVec2, max: DVec2| {
-            min.x - reach >= f.min.x
-                && min.y - reach >= f.min.y
-                && max.x + reach <= f.max.x
-                && max.y + reach <= f.max.y
-        };
         now + dt <= self.until
-            && inside(self.at(now), min, max)
-            && inside(self.at(now + dt), min + step, max + step)
+            && encloses(self.at(now), min, max, reach)
+            && encloses(self.at(now + dt), min + step, max + step, reach)
     }
+}
+
+/// Whether the box `f` holds the box `min..max` grown every way by `reach`.
+#[inline]
+pub(super) fn encloses(f: Aabb, min: DVec2, max: DVec2, reach: f64) -> bool {
+    min.x - reach >= f.min.x
+        && min.y - reach >= f.min.y
+        && max.x + reach <= f.max.x
+        && max.y + reach <= f.max.y
 }
 
 /// Whether two fat boxes meet: their hulls overlap, and, where one moves, the two boxes
