@@ -53,7 +53,7 @@ use super::body::{Body, GroupId};
 use super::impulse::KeyMap;
 use crate::geometry::tiered::Tiered;
 use crate::geometry::Aabb;
-use fat::{cross, encloses, meet, Fat};
+use fat::{cross, encloses, meet, meet_crossing, Fat};
 use frame::{fixed, pulled, reach, sideways, swept_steps, velocity, CROWDED, MOVING_STEPS};
 
 /// A candidate pair of bodies (indices, `a < b`) with the impulses of its last contact.
@@ -324,15 +324,13 @@ impl PairSet {
             if held {
                 continue;
             }
-            let hull = f.hull();
-            self.index.remove(i, hull.min, hull.max);
             if self.prior.len() != self.fat.len() {
                 self.prior.resize(self.fat.len(), f);
             }
             self.prior[i as usize] = f;
             self.place(bodies, i, dt);
-            let hull = self.fat[i as usize].hull();
-            self.index.insert(i, hull.min, hull.max);
+            let (old, new) = (f.hull(), self.fat[i as usize].hull());
+            self.index.relocate(i, (old.min, old.max), new.min, new.max);
             self.moved.push(i);
         }
         self.statics = statics;
@@ -621,11 +619,12 @@ impl PairSet {
         let mut crossed = 0u32;
         self.index.query(hull.min, hull.max, |j| {
             let fj = &fat[j as usize];
-            if j != i && cross(&fi, fj) {
-                crossed += 1;
+            if j == i || !cross(&fi, fj) {
+                return;
             }
+            crossed += 1;
             if (j < i && searching[j as usize])
-                || !meet(&fi, fj)
+                || !meet_crossing(&fi, fj)
                 || (new_only && meet(was(i), was(j)))
                 || !eligible(resolves, groups, bodies, i, j)
             {

@@ -33,14 +33,54 @@ pub enum Cells {
     Oversized,
 }
 
+/// The most cells the grid keeps in its dense block ([`Block`]): 64 Ki cells, 1.5 MiB of
+/// empty lists at most, and [`BLOCK_CELLS_A_BOX`] a box it holds.
+const BLOCK_CELLS: i64 = 1 << 16;
+const BLOCK_CELLS_A_BOX: i64 = 16;
+
+/// A dense rectangle of cells `x0..x0 + w, y0..y0 + h`, column by column: a cell there is
+/// an array index, not a hash lookup. It grows to hold where the boxes go, up to
+/// [`BLOCK_CELLS`]; the cells outside it are hashed.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+struct Block {
+    x0: i64,
+    y0: i64,
+    w: i64,
+    h: i64,
+    lists: Vec<Vec<u32>>,
+}
+
+impl Block {
+    /// The index of cell `(cx, cy)`, if the block has it.
+    #[inline]
+    fn index(&self, cx: i64, cy: i64) -> Option<usize> {
+        let (dx, dy) = (cx.wrapping_sub(self.x0), cy.wrapping_sub(self.y0));
+        ((dx as u64) < self.w as u64 && (dy as u64) < self.h as u64)
+            .then(|| (dx * self.h + dy) as usize)
+    }
+
+    /// Whether the block has every cell of `x0..=x1, y0..=y1`.
+    #[inline]
+    fn covers(&self, (x0, y0, x1, y1): (i64, i64, i64, i64)) -> bool {
+        x0 >= self.x0 && y0 >= self.y0 && x1 < self.x0 + self.w && y1 < self.y0 + self.h
+    }
+}
+
 /// Square cells of side `cell`, each listing the slots whose boxes touch it.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Grid {
     cell: f64,
     /// A box covering more cells than this is kept aside instead.
     max_cells: i64,
+    /// The cells where the boxes are, dense; the others hashed in `cells`. Which holds a
+    /// cell changes nothing a caller sees: a cell's list is the same either way.
+    #[serde(default)]
+    block: Block,
     cells: KeyMap<(i64, i64), Vec<u32>>,
     oversized: Vec<u32>,
+    /// Boxes binned in cells (not those kept aside).
+    #[serde(default)]
+    boxes: usize,
     /// Cells left empty by `remove`, kept for the next box that comes (a body moving
     /// through the grid would otherwise free and allocate a cell at every step); swept
     /// out when they are most of the cells.
@@ -60,8 +100,10 @@ impl Grid {
         Grid {
             cell: cell.max(1e-9),
             max_cells,
+            block: Block::default(),
             cells: KeyMap::default(),
             oversized: Vec::new(),
+            boxes: 0,
             empty: 0,
         }
     }
@@ -69,6 +111,8 @@ impl Grid {
     /// Empties the grid and sets its cell size.
     pub fn reset(&mut self, cell: f64) {
         self.cell = cell.max(1e-9);
+        self.block = Block::default();
+        self.boxes = 0;
         self.cells.clear();
         self.oversized.clear();
         self.empty = 0;
@@ -98,8 +142,16 @@ impl Grid {
         match place {
             Cells::Oversized => self.oversized.push(slot),
             Cells::Range(x0, y0, x1, y1) => {
+                self.boxes += 1;
+                if !self.block.covers((x0, y0, x1, y1)) {
+                    self.grow((x0, y0, x1, y1));
+                }
                 for cx in x0..=x1 {
                     for cy in y0..=y1 {
+                        if let Some(k) = self.block.index(cx, cy) {
+                            self.block.lists[k].push(slot);
+                            continue;
+                        }
                         let list = self.cells.entry((cx, cy)).or_default();
                         if list.is_empty() && list.capacity() > 0 {
                             self.empty = self.empty.saturating_sub(1);
@@ -112,14 +164,95 @@ impl Grid {
         place
     }
 
+    /// Grows the dense block to hold the cells `range` as well, when the two fit in
+    /// [`BLOCK_CELLS`]: to twice the extent they need (a body flying on finds room
+    /// already), or to just that, if that at least doubles the block. The hashed cells the
+    /// block comes to cover move into it.
+    fn grow(&mut self, range: (i64, i64, i64, i64)) {
+        let (x0, y0, x1, y1) = range;
+        let b = &self.block;
+        let (ux0, uy0, ux1, uy1) = if b.w == 0 {
+            (x0, y0, x1, y1)
+        } else {
+            (
+                x0.min(b.x0),
+                y0.min(b.y0),
+                x1.max(b.x0 + b.w - 1),
+                y1.max(b.y0 + b.h - 1),
+            )
+        };
+        // Room for the boxes the grid holds, not for wherever one flew off to: a block
+        // of many empty cells costs its making and its misses in the cache.
+        let most = BLOCK_CELLS.min(BLOCK_CELLS_A_BOX * (self.boxes as i64 + 16));
+        let fits = |w: i64, h: i64| w.checked_mul(h).is_some_and(|n| n <= most) && w > 0 && h > 0;
+        let (Some(uw), Some(uh)) = (
+            ux1.checked_sub(ux0).and_then(|d| d.checked_add(1)),
+            uy1.checked_sub(uy0).and_then(|d| d.checked_add(1)),
+        ) else {
+            return;
+        };
+        let (nx0, ny0, nw, nh) = if fits(2 * uw, 2 * uh) {
+            (ux0 - uw / 2, uy0 - uh / 2, 2 * uw, 2 * uh)
+        } else if fits(uw, uh) {
+            (ux0, uy0, uw, uh)
+        } else {
+            return;
+        };
+        // Each growth at least doubles the block, so it is built again a few times at most
+        // (a body flying on past a full block goes to the hashed cells).
+        if nw * nh < 2 * b.w * b.h {
+            return;
+        }
+        let mut next = Block {
+            x0: nx0,
+            y0: ny0,
+            w: nw,
+            h: nh,
+            lists: Vec::new(),
+        };
+        next.lists.resize_with((nw * nh) as usize, Vec::new);
+        let old = std::mem::take(&mut self.block);
+        for (k, list) in old.lists.into_iter().enumerate() {
+            let (dx, dy) = (k as i64 / old.h, k as i64 % old.h);
+            if let Some(j) = next.index(old.x0 + dx, old.y0 + dy) {
+                next.lists[j] = list;
+            }
+        }
+        self.cells
+            .retain(|&(cx, cy), list| match next.index(cx, cy) {
+                Some(j) => {
+                    next.lists[j] = std::mem::take(list);
+                    false
+                }
+                None => true,
+            });
+        self.empty = self.cells.values().filter(|l| l.is_empty()).count();
+        self.block = next;
+    }
+
+    /// The list of cell `(cx, cy)`, if it has one.
+    #[inline]
+    fn list(&self, cx: i64, cy: i64) -> Option<&Vec<u32>> {
+        match self.block.index(cx, cy) {
+            Some(k) => Some(&self.block.lists[k]),
+            None => self.cells.get(&(cx, cy)),
+        }
+    }
+
     /// Takes `slot` out of the cells `insert` put it in.
     pub fn remove(&mut self, slot: u32, place: Cells) {
         match place {
             Cells::Oversized => self.oversized.retain(|&j| j != slot),
             Cells::Range(x0, y0, x1, y1) => {
+                self.boxes = self.boxes.saturating_sub(1);
                 for cx in x0..=x1 {
                     for cy in y0..=y1 {
-                        if let Some(list) = self.cells.get_mut(&(cx, cy)) {
+                        if let Some(k) = self.block.index(cx, cy) {
+                            let list = &mut self.block.lists[k];
+                            if let Some(k) = list.iter().position(|&j| j == slot) {
+                                list.swap_remove(k);
+                            }
+                        } else if let Some(list) = self.cells.get_mut(&(cx, cy)) {
                             if let Some(k) = list.iter().position(|&j| j == slot) {
                                 list.swap_remove(k);
                                 if list.is_empty() {
@@ -153,9 +286,19 @@ impl Grid {
                 self.max_cells
             ));
         }
+        let b = &self.block;
+        if b.w < 0 || b.h < 0 || b.w.checked_mul(b.h) != Some(b.lists.len() as i64) {
+            return Err(format!(
+                "a block of {} x {} cells holds {} lists",
+                b.w,
+                b.h,
+                b.lists.len()
+            ));
+        }
         let slot = self
             .cells
             .values()
+            .chain(&b.lists)
             .flatten()
             .chain(&self.oversized)
             .find(|&&s| s as usize >= slots);
@@ -188,10 +331,21 @@ impl Grid {
     /// aside; a slot in several of the cells comes once per cell.
     pub fn visit(&self, range: (i64, i64, i64, i64), mut f: impl FnMut(u32)) {
         let (x0, y0, x1, y1) = range;
-        for cx in x0..=x1 {
-            for cy in y0..=y1 {
-                if let Some(list) = self.cells.get(&(cx, cy)) {
+        if self.block.covers(range) {
+            // Every cell in the block: a column of the range is a run of its lists.
+            let b = &self.block;
+            for cx in x0..=x1 {
+                let top = ((cx - b.x0) * b.h + (y0 - b.y0)) as usize;
+                for list in &b.lists[top..=top + (y1 - y0) as usize] {
                     list.iter().copied().for_each(&mut f);
+                }
+            }
+        } else {
+            for cx in x0..=x1 {
+                for cy in y0..=y1 {
+                    if let Some(list) = self.list(cx, cy) {
+                        list.iter().copied().for_each(&mut f);
+                    }
                 }
             }
         }
@@ -206,7 +360,13 @@ impl Grid {
         let c = |v: f64| floor_cell(v / self.cell);
         let (x0, y0, x1, y1) = (c(min.x), c(min.y), c(max.x), c(max.y));
         if (x1 - x0 + 1).saturating_mul(y1 - y0 + 1) > 4096 {
-            out.extend(self.cells.values().flatten().copied());
+            out.extend(
+                self.cells
+                    .values()
+                    .chain(&self.block.lists)
+                    .flatten()
+                    .copied(),
+            );
             out.extend_from_slice(&self.oversized);
         } else {
             self.visit((x0, y0, x1, y1), |s| out.push(s));
@@ -261,6 +421,61 @@ mod tests {
         assert_eq!(floor_cell(1e300), 1_000_000_000_000_000);
         assert_eq!(floor_cell(f64::NEG_INFINITY), -1_000_000_000_000_000);
         assert_eq!(floor_cell(f64::NAN), 0);
+    }
+
+    proptest::proptest! {
+        /// Boxes inserted and removed near each other and far off (past what the dense
+        /// block may cover): every visit meets the slots of each cell in the order a plain
+        /// map of cells keeps them, wherever the grid keeps the cell.
+        #[test]
+        fn a_visit_meets_each_cells_slots_as_a_map_of_cells_keeps_them(
+            ops in proptest::collection::vec(
+                (0u32..40, proptest::bool::ANY, -30.0f64..30.0, -30.0f64..30.0, 0.0f64..3.0, 0u8..4),
+                1..300),
+        ) {
+            let mut g = Grid::new(0.5, 64);
+            let mut model: std::collections::BTreeMap<(i64, i64), Vec<u32>> = Default::default();
+            let mut placed: Vec<Option<(Cells, (DVec2, DVec2))>> = vec![None; 40];
+            for (slot, remove, x, y, side, far) in ops {
+                // One box in four a million cells off.
+                let at = DVec2::new(x, y) + DVec2::splat(if far == 0 { 5e5 } else { 0.0 });
+                let b = (at, at + DVec2::splat(side));
+                if let Some((place, _)) = placed[slot as usize].take() {
+                    g.remove(slot, place);
+                    if let Cells::Range(x0, y0, x1, y1) = place {
+                        for c in (x0..=x1).flat_map(|cx| (y0..=y1).map(move |cy| (cx, cy))) {
+                            let list = model.get_mut(&c).expect("inserted");
+                            let k = list.iter().position(|&j| j == slot).expect("inserted");
+                            list.swap_remove(k);
+                        }
+                    }
+                }
+                if !remove {
+                    let place = g.insert(slot, b.0, b.1);
+                    if let Cells::Range(x0, y0, x1, y1) = place {
+                        for cx in x0..=x1 {
+                            for cy in y0..=y1 {
+                                model.entry((cx, cy)).or_default().push(slot);
+                            }
+                        }
+                    }
+                    placed[slot as usize] = Some((place, b));
+                }
+                for (_, b) in placed.iter().flatten() {
+                    let ((x0, y0, x1, y1), _) = g.range_of(b.0, b.1);
+                    let mut seen: Vec<u32> = Vec::new();
+                    g.visit((x0, y0, x1, y1), |s| seen.push(s));
+                    let mut want: Vec<u32> = Vec::new();
+                    for cx in x0..=x1 {
+                        for cy in y0..=y1 {
+                            want.extend(model.get(&(cx, cy)).into_iter().flatten());
+                        }
+                    }
+                    want.extend(&g.oversized);
+                    proptest::prop_assert_eq!(seen, want);
+                }
+            }
+        }
     }
 
     #[test]

@@ -108,6 +108,20 @@ impl Tiered {
         self.at[item as usize] = NOWHERE;
     }
 
+    /// Moves `item` from the box `old_min..old_max` it was inserted with to `min..max`:
+    /// nothing to do when both cover the same cells of the grid (a slow body placed
+    /// again), else taken out and put in again.
+    pub fn relocate(&mut self, item: u32, old: (DVec2, DVec2), min: DVec2, max: DVec2) {
+        if self.at[item as usize] == IN_GRID {
+            let now = self.grid.cells_of(min, max);
+            if matches!(now, Cells::Range(..)) && now == self.grid.cells_of(old.0, old.1) {
+                return;
+            }
+        }
+        self.remove(item, old.0, old.1);
+        self.insert(item, min, max);
+    }
+
     /// Puts the items waiting for the tree in it: one by one, or, when they are many, by
     /// building the tree again with them.
     pub fn flush(&mut self) {

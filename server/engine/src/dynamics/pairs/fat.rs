@@ -121,7 +121,13 @@ pub(super) fn encloses(f: Aabb, min: DVec2, max: DVec2, reach: f64) -> bool {
 /// overlap at one time within both their lives.
 #[inline]
 pub(super) fn meet(p: &Fat, q: &Fat) -> bool {
-    cross(p, q) && (!(p.moves() || q.moves()) || meet_in_time(p, q))
+    cross(p, q) && meet_crossing(p, q)
+}
+
+/// Whether two fat boxes whose hulls overlap meet ([`meet`]).
+#[inline]
+pub(super) fn meet_crossing(p: &Fat, q: &Fat) -> bool {
+    !(p.moves() || q.moves()) || meet_in_time(p, q)
 }
 
 /// Whether two fat boxes' hulls overlap (what the index finds, before any test in time).
