@@ -91,6 +91,12 @@ pub fn rest(
             islands_matter = true;
             continue;
         }
+        // Too fast to rest, or never to sleep: its rest starts again, and with it its
+        // anchor and depth (set afresh the next step it is slow), so neither is kept up.
+        if !(may_sleep(i as usize) && shorter(b.vel, speed)) {
+            b.rest_time = 0.0;
+            continue;
+        }
         // At rest: slow, and near where it has been lately. Split impulses move
         // positions without velocity: the anchor follows the body's place, averaged over
         // `delay`, so a body they push on steadily faster than `speed` draws away from
@@ -123,11 +129,7 @@ pub fn rest(
         let jammed =
             || depth > JAM_DEPTH * size && b.rest_depth - depth < 2.0 * reach && !accelerated(b);
         let still = from.is_some() && (shorter(b.pos - b.rest_anchor, reach) || jammed());
-        b.rest_time = if may_sleep(i as usize) && shorter(b.vel, speed) && still {
-            b.rest_time + dt
-        } else {
-            0.0
-        };
+        b.rest_time = if still { b.rest_time + dt } else { 0.0 };
         islands_matter |= rested(b.rest_time, delay, dt);
     }
     islands_matter
