@@ -538,7 +538,7 @@ pub fn solve_frame(
         }
         clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
-        let found_free = found.free && passes::hold_free(sb, buckets, held);
+        let found_free = found.free && passes::hold_free(sb, buckets, held, found.touching_fixed);
         // The change under which a pass has converged, in the units of the smallest
         // contact.
         let converged = CONVERGED_CHANGE * found.smallest;

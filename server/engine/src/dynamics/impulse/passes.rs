@@ -121,11 +121,13 @@ pub(super) fn hold_free(
     sb: &[SolverBody],
     buckets: &mut [Vec<Contact>],
     parent: &mut Vec<u32>,
+    touching_fixed: bool,
 ) -> bool {
     use crate::dynamics::sleep::find;
-    // Nothing static touched: no crowd is held, and no contact stays free (a block struck
-    // in open space, as the suite's smash, pays one look at its contacts, not the joins).
-    if !buckets.iter().flatten().any(|c| c.fixed && c.gap <= 0.0) {
+    // Nothing static touched (`touching_fixed`, as the search found): no crowd is held,
+    // and no contact stays free (a block struck in open space, as the suite's smash, pays
+    // one look at its contacts, not the joins).
+    if !touching_fixed {
         for c in buckets.iter_mut().flatten() {
             c.free = false;
         }

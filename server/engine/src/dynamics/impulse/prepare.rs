@@ -207,6 +207,8 @@ pub(super) struct Found {
     pub bouncing: bool,
     /// Whether a contact with a static body overlaps beyond its slop.
     pub deep_fixed: bool,
+    /// Whether a contact with a static body touches (a crowd may be held by it).
+    pub touching_fixed: bool,
     /// Whether a contact is free (its push-out spread).
     pub free: bool,
     /// Whether a contact starts from a share of its last push ([`WARM_PUSH_SHARE`]).
@@ -223,6 +225,7 @@ impl Default for Found {
             smallest: f64::INFINITY,
             bouncing: false,
             deep_fixed: false,
+            touching_fixed: false,
             free: false,
             warm_push: false,
             impulses: false,
@@ -239,6 +242,7 @@ impl Found {
             smallest: self.smallest.min(other.smallest),
             bouncing: self.bouncing || other.bouncing,
             deep_fixed: self.deep_fixed || other.deep_fixed,
+            touching_fixed: self.touching_fixed || other.touching_fixed,
             free: self.free || other.free,
             warm_push: self.warm_push || other.warm_push,
             impulses: self.impulses || other.impulses,
@@ -379,6 +383,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             found.bouncing |= restitution > 0.0;
             let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
             found.deep_fixed |= fixed && -gap > slop;
+            found.touching_fixed |= fixed && gap <= 0.0;
             let free = !fixed && !accelerated && params.split_impulses;
             found.free |= free;
             let jp = if warm && !free && params.split_impulses && -gap > 2.0 * slop {
