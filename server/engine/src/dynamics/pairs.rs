@@ -321,22 +321,16 @@ impl PairSet {
                 let (min, max) = self.swept(body, min, max, 1.0, dt);
                 encloses(f.hull(), min, max, r)
             };
-            if held {
-                continue;
+            if !held {
+                self.moved.push(i);
             }
-            if self.prior.len() != self.fat.len() {
-                self.prior.resize(self.fat.len(), f);
-            }
-            self.prior[i as usize] = f;
-            self.place(bodies, i, dt);
-            let (old, new) = (f.hull(), self.fat[i as usize].hull());
-            self.index.relocate(i, (old.min, old.max), new.min, new.max);
-            self.moved.push(i);
         }
         self.statics = statics;
         if self.moved.is_empty() {
             return;
         }
+        // A new frame places every body again: the ones that left their boxes are not
+        // placed in the old one first.
         if self.moved.len() * 4 >= self.in_play {
             if let Some(frame) = self.better_frame(bodies) {
                 self.falls = self.free_fall(frame);
@@ -347,6 +341,19 @@ impl PairSet {
                 return;
             }
         }
+        if self.prior.len() != self.fat.len() {
+            self.prior
+                .resize(self.fat.len(), Fat::standing(DVec2::ZERO, DVec2::ZERO));
+        }
+        let moved = std::mem::take(&mut self.moved);
+        for &i in &moved {
+            let f = self.fat[i as usize];
+            self.prior[i as usize] = f;
+            self.place(bodies, i, dt);
+            let (old, new) = (f.hull(), self.fat[i as usize].hull());
+            self.index.relocate(i, (old.min, old.max), new.min, new.max);
+        }
+        self.moved = moved;
         self.index.flush();
         self.reinserted += self.moved.len() as u64;
         self.found.clear();
