@@ -162,8 +162,9 @@ pub struct ImpulseParams {
     pub exact_sliding: Option<DVec2>,
     /// End each sub-step's passes with the impact sweep: see [`impact`].
     pub impact_propagation: bool,
-    /// Run a frame in which every body is still as push-out only ([`still`]): the bits
-    /// are those of the full passes, which `false` runs (to compare them).
+    /// Run a frame in which every body is still as push-out only, and leave the islands
+    /// that cannot change out of a frame's stages ([`still`]): the bits are those of the
+    /// full passes, which `false` runs (to compare them).
     pub still_frames: bool,
 }
 
@@ -274,6 +275,9 @@ pub struct ImpulseReport {
     /// The largest normal velocity change of the last pass times the sub-step (see
     /// [`crate::world::StepStats::residual`]).
     pub residual: f64,
+    /// Contacts left out of the frame's stages, in islands that could not change (see
+    /// [`still::still_islands`]).
+    pub parked: u64,
 }
 
 /// No place among the solver's bodies.
@@ -350,6 +354,12 @@ pub struct SolverBuffers {
     /// The contacts a still frame pushes out in its passes (see [`still::Pushing`]).
     #[serde(skip)]
     pushing: still::Pushing,
+    /// The contacts of the islands that may change this frame, when others cannot (see
+    /// [`still::still_islands`]), and which islands move.
+    #[serde(skip)]
+    live: still::Pushing,
+    #[serde(skip)]
+    island_moves: Vec<bool>,
     /// The frame's supporting contacts, by the body they hold up, lowest first (see
     /// [`support`]).
     #[serde(skip)]
@@ -510,7 +520,8 @@ pub fn solve_frame(
         let searching = split(pairs.len().min(buffers.last_contacts));
         let found = prepare::prepare(bodies, pairs, params, buffers, movers, &gains, searching);
         (report.contacts, report.deepest) = (found.touching, found.deepest);
-        buffers.last_contacts = buffers.buckets.iter().map(Vec::len).sum();
+        let contacts = buffers.buckets.iter().map(Vec::len).sum();
+        buffers.last_contacts = contacts;
         let team = split(buffers.last_contacts);
         let SolverBuffers {
             bodies: sb,
@@ -528,6 +539,8 @@ pub fn solve_frame(
             spread,
             held,
             pushing,
+            live,
+            island_moves,
             ..
         } = &mut *buffers;
         if let Some(up) = params.rest_load {
@@ -548,7 +561,26 @@ pub fn solve_frame(
         // alone are swept (the others would change nothing), and put back after.
         let gathered = still && found_free;
         if gathered {
-            pushing.gather(buckets);
+            pushing.gather(buckets, |c| !c.free);
+        }
+        // The islands that cannot change this frame sit its stages out: the others' contacts
+        // are swept alone, and put back after.
+        let parked = params.still_frames
+            && !still
+            && still::still_islands(
+                &params,
+                sb,
+                gain,
+                buckets,
+                (movers.len(), found.at_rest, contacts),
+                held,
+                island_moves,
+            );
+        if parked {
+            use crate::dynamics::sleep::find;
+            live.gather(buckets, |c| island_moves[find(held, c.a) as usize]);
+            report.parked = (contacts - live.buckets.iter().map(Vec::len).sum::<usize>()) as u64;
+            std::mem::swap(buckets, &mut live.buckets);
         }
         for step in 0..substeps {
             let last_step = step + 1 == substeps;
@@ -634,6 +666,10 @@ pub fn solve_frame(
         if gathered {
             pushing.scatter(buckets);
             clock.lap(times.as_mut().map(|t| &mut t.relax));
+        }
+        if parked {
+            std::mem::swap(buckets, &mut live.buckets);
+            live.scatter(buckets);
         }
     }
     let SolverBuffers {

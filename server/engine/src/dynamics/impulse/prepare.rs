@@ -67,6 +67,8 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
         spread: _,
         held: _,
         pushing: _,
+        live: _,
+        island_moves: _,
         supports: _,
         impacts: _,
         crew: _,
@@ -209,6 +211,9 @@ pub(super) struct Found {
     pub deep_fixed: bool,
     /// Whether a contact with a static body touches (a crowd may be held by it).
     pub touching_fixed: bool,
+    /// Contacts between two bodies at rest that nothing accelerates (those of islands
+    /// that cannot change are among them: [`super::still::still_islands`]).
+    pub at_rest: usize,
     /// Whether a contact is free (its push-out spread).
     pub free: bool,
     /// Whether a contact starts from a share of its last push ([`WARM_PUSH_SHARE`]).
@@ -226,6 +231,7 @@ impl Default for Found {
             bouncing: false,
             deep_fixed: false,
             touching_fixed: false,
+            at_rest: 0,
             free: false,
             warm_push: false,
             impulses: false,
@@ -243,6 +249,7 @@ impl Found {
             bouncing: self.bouncing || other.bouncing,
             deep_fixed: self.deep_fixed || other.deep_fixed,
             touching_fixed: self.touching_fixed || other.touching_fixed,
+            at_rest: self.at_rest + other.at_rest,
             free: self.free || other.free,
             warm_push: self.warm_push || other.warm_push,
             impulses: self.impulses || other.impulses,
@@ -384,6 +391,7 @@ impl<G: Fn(&Body) -> DVec2> Finder<'_, G> {
             let fixed = a.inv_mass == 0.0 || b.inv_mass == 0.0;
             found.deep_fixed |= fixed && -gap > slop;
             found.touching_fixed |= fixed && gap <= 0.0;
+            found.at_rest += usize::from(!moving && !accelerated);
             let free = !fixed && !accelerated && params.split_impulses;
             found.free |= free;
             let jp = if warm && !free && params.split_impulses && -gap > 2.0 * slop {

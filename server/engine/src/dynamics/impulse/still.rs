@@ -78,14 +78,19 @@ pub(super) struct Pushing {
 }
 
 impl Pushing {
-    /// Copies out the contacts of `buckets` that are not free.
-    pub(super) fn gather(&mut self, buckets: &[Vec<Contact>]) {
+    /// Copies out the contacts of `buckets` that `keep` keeps (a still frame's: those
+    /// not free).
+    pub(super) fn gather(
+        &mut self,
+        buckets: &[Vec<Contact>],
+        mut keep: impl FnMut(&Contact) -> bool,
+    ) {
         self.buckets.resize_with(buckets.len(), Vec::new);
         self.from.clear();
         for (k, (bucket, out)) in buckets.iter().zip(self.buckets.iter_mut()).enumerate() {
             out.clear();
             for (i, c) in bucket.iter().enumerate() {
-                if !c.free {
+                if keep(c) {
                     out.push(*c);
                     self.from.push((k as u32, i as u32));
                 }
@@ -100,4 +105,79 @@ impl Pushing {
             buckets[k as usize][i as usize] = *c;
         }
     }
+}
+
+/// Islands that cannot change this frame: bodies joined by contacts, none of them moving
+/// (velocity and pseudo-velocity 0) or accelerated, and no contact among them carrying an
+/// impulse, drifting back to a gap ([`Contact::keep`]) or overlapping beyond its slop.
+/// What makes a frame still ([`frame`]) then holds for the island alone: every impulse
+/// of its contacts stays 0 through every stage, and with it every velocity and place, so
+/// its contacts are left out of the passes (a block at rest in open space that a heavy
+/// body has not reached yet). A static body joins the islands it touches.
+///
+/// Returns whether a quarter of the contacts or more are in such islands (fewer are not
+/// worth the copying); then a contact `c`'s island moves when `moving[find(parent, c.a)]`
+/// (`parent` and `moving` are filled here).
+pub(super) fn still_islands(
+    params: &ImpulseParams,
+    sb: &[SolverBody],
+    gain: &[DVec2],
+    buckets: &[Vec<Contact>],
+    (movers, at_rest, contacts): (usize, usize, usize),
+    parent: &mut Vec<u32>,
+    moving: &mut Vec<bool>,
+) -> bool {
+    use crate::dynamics::sleep::find;
+    // `at_rest` of the `contacts` join two bodies at rest that nothing accelerates (the
+    // search counted them): a still island's are among them.
+    if params.rest_load.is_some()
+        || params.support.is_some()
+        || params.exact_sliding.is_some()
+        || at_rest * 4 < contacts.max(1)
+    {
+        return false;
+    }
+    let moves = |k: usize| {
+        let s = &sb[k];
+        s.vel != DVec2::ZERO
+            || s.pseudo != DVec2::ZERO
+            || gain.get(k).is_some_and(|g| *g != DVec2::ZERO)
+    };
+    // A static body never moves by itself: an island that cannot change has a mover at
+    // rest.
+    if (0..movers).all(moves) {
+        return false;
+    }
+    let n = sb.len();
+    parent.clear();
+    parent.extend(0..n as u32);
+    moving.clear();
+    moving.extend((0..n).map(moves));
+    for c in buckets.iter().flatten() {
+        let (ra, rb) = (find(parent, c.a), find(parent, c.b));
+        if ra != rb {
+            parent[ra.max(rb) as usize] = ra.min(rb);
+        }
+        if c.normal_impulse != 0.0
+            || c.tangent_impulse != 0.0
+            || c.pseudo_impulse != 0.0
+            || c.keep != 0.0
+            || -c.gap - c.slop > 0.0
+        {
+            moving[c.a as usize] = true;
+        }
+    }
+    // Each island's root (its lowest body) moves if any of its bodies does.
+    for k in 0..n as u32 {
+        if moving[k as usize] {
+            let r = find(parent, k);
+            moving[r as usize] = true;
+        }
+    }
+    let still = buckets
+        .iter()
+        .flatten()
+        .filter(|c| !moving[find(parent, c.a) as usize])
+        .count();
+    still * 4 >= contacts.max(1)
 }

@@ -360,3 +360,80 @@ fn a_still_crowd_pushes_out_with_the_bits_of_the_full_passes() {
     // The crowd was pushed about: the frames did work.
     assert!(moved > 0.01, "{moved}");
 }
+
+#[test]
+fn a_block_at_rest_sits_out_the_frames_until_a_body_reaches_it_to_the_bit() {
+    // A 4 x 4 block of touching boxes at rest, no gravity, and a box flying at it from
+    // 3 units off: the block's island cannot change until the box touches it.
+    let mut start = vec![body(0, DVec2::new(-4.0, 0.25), DVec2::new(12.0, 0.0), 0.5)];
+    for i in 0..4 {
+        for j in 0..4 {
+            let k = start.len() as u32;
+            let pos = DVec2::new(f64::from(i), f64::from(j) - 1.5);
+            start.push(body(k, pos, DVec2::ZERO, 4.0));
+        }
+    }
+    let movers: Vec<u32> = (0..start.len() as u32).collect();
+    let run = |still_frames: bool| {
+        let mut bodies = start.clone();
+        let mut contacts = Contacts::default();
+        let (mut kept, mut parked, mut frames) = (Vec::new(), Vec::new(), Vec::new());
+        for _ in 0..30 {
+            let n = bodies.len() as u32;
+            let mut candidates: Vec<(u32, u32)> = (0..n)
+                .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+                .collect();
+            contacts.refill(&mut candidates, &mut kept);
+            let report = solve_frame(
+                &mut bodies,
+                &mut contacts.pairs,
+                ImpulseParams {
+                    split_impulses: true,
+                    substeps: 2,
+                    iterations: 2,
+                    adaptive_iterations: 6,
+                    impact_propagation: true,
+                    still_frames,
+                    ..params()
+                },
+                &mut SolverBuffers::default(),
+                &movers,
+                |_| DVec2::ZERO,
+                &mut Vec::new(),
+            );
+            parked.push(report.parked);
+            let bits = |v: DVec2| (v.x.to_bits(), v.y.to_bits());
+            frames.push((
+                bodies
+                    .iter()
+                    .map(|b| (bits(b.pos), bits(b.vel)))
+                    .collect::<Vec<_>>(),
+                contacts
+                    .pairs
+                    .iter()
+                    .map(|p| (p.normal_impulse.to_bits(), p.tangent_impulse.to_bits()))
+                    .collect::<Vec<_>>(),
+            ));
+        }
+        (frames, parked, bodies)
+    };
+    let (parked_frames, parked, bodies) = run(true);
+    let (full_frames, none, _) = run(false);
+    assert!(none.iter().all(|&p| p == 0));
+    // The block's 42 contacts (24 sides, 18 corners) sat out the first frames, and none
+    // once the box reached it.
+    assert_eq!(parked[0], 42, "{parked:?}");
+    let reached = parked
+        .iter()
+        .position(|&p| p == 0)
+        .expect("the box reaches the block");
+    assert!(
+        reached >= 5 && parked[reached..].iter().all(|&p| p == 0),
+        "{parked:?}"
+    );
+    // The block was struck: the frames after did work.
+    assert!(bodies[16].vel.x > 0.1, "{}", bodies[16].vel);
+    for (k, (p, f)) in parked_frames.iter().zip(&full_frames).enumerate() {
+        assert_eq!(p, f, "frame {k}");
+    }
+}
