@@ -33,6 +33,48 @@ fn solve(
     )
 }
 
+/// Runs `count` frames of `start` without gravity, every pair a candidate, and calls
+/// `each` with the bodies, the pairs and the report after each frame. Returns the bodies.
+fn frames(
+    start: &[Body],
+    movers: &[u32],
+    params: ImpulseParams,
+    count: usize,
+    mut each: impl FnMut(&[Body], &Contacts, &ImpulseReport),
+) -> Vec<Body> {
+    let mut bodies = start.to_vec();
+    let (mut contacts, mut kept) = (Contacts::default(), Vec::new());
+    for _ in 0..count {
+        let n = bodies.len() as u32;
+        let mut candidates: Vec<(u32, u32)> = (0..n)
+            .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
+            .collect();
+        contacts.refill(&mut candidates, &mut kept);
+        let report = solve_frame(
+            &mut bodies,
+            &mut contacts.pairs,
+            params,
+            &mut SolverBuffers::default(),
+            movers,
+            |_| DVec2::ZERO,
+            &mut Vec::new(),
+        );
+        each(&bodies, &contacts, &report);
+    }
+    bodies
+}
+
+/// Split impulses, 2 sub-steps of 2 passes and up to 6 more (as the default).
+fn split_params() -> ImpulseParams {
+    ImpulseParams {
+        split_impulses: true,
+        substeps: 2,
+        iterations: 2,
+        adaptive_iterations: 6,
+        ..params()
+    }
+}
+
 fn params() -> ImpulseParams {
     ImpulseParams {
         iterations: 8,
@@ -315,34 +357,15 @@ fn a_still_crowd_pushes_out_with_the_bits_of_the_full_passes() {
     }
     let movers: Vec<u32> = (4..start.len() as u32).collect();
     let run = |still_frames: bool| {
-        let mut bodies = start.clone();
-        let mut contacts = Contacts::default();
-        let (mut kept, mut passes) = (Vec::new(), 0);
-        for _ in 0..30 {
-            let n = bodies.len() as u32;
-            let mut candidates: Vec<(u32, u32)> = (0..n)
-                .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
-                .collect();
-            contacts.refill(&mut candidates, &mut kept);
-            let report = solve_frame(
-                &mut bodies,
-                &mut contacts.pairs,
-                ImpulseParams {
-                    split_impulses: true,
-                    substeps: 2,
-                    iterations: 2,
-                    adaptive_iterations: 6,
-                    slop: 0.0001,
-                    still_frames,
-                    ..params()
-                },
-                &mut SolverBuffers::default(),
-                &movers,
-                |_| DVec2::ZERO,
-                &mut Vec::new(),
-            );
+        let mut passes = 0;
+        let params = ImpulseParams {
+            slop: 0.0001,
+            still_frames,
+            ..split_params()
+        };
+        let bodies = frames(&start, &movers, params, 30, |_, _, report| {
             passes += report.passes;
-        }
+        });
         (bodies, passes)
     };
     let (still, still_passes) = run(true);
@@ -375,35 +398,16 @@ fn a_block_at_rest_sits_out_the_frames_until_a_body_reaches_it_to_the_bit() {
     }
     let movers: Vec<u32> = (0..start.len() as u32).collect();
     let run = |still_frames: bool| {
-        let mut bodies = start.clone();
-        let mut contacts = Contacts::default();
-        let (mut kept, mut parked, mut frames) = (Vec::new(), Vec::new(), Vec::new());
-        for _ in 0..30 {
-            let n = bodies.len() as u32;
-            let mut candidates: Vec<(u32, u32)> = (0..n)
-                .flat_map(|a| (a + 1..n).map(move |b| (a, b)))
-                .collect();
-            contacts.refill(&mut candidates, &mut kept);
-            let report = solve_frame(
-                &mut bodies,
-                &mut contacts.pairs,
-                ImpulseParams {
-                    split_impulses: true,
-                    substeps: 2,
-                    iterations: 2,
-                    adaptive_iterations: 6,
-                    impact_propagation: true,
-                    still_frames,
-                    ..params()
-                },
-                &mut SolverBuffers::default(),
-                &movers,
-                |_| DVec2::ZERO,
-                &mut Vec::new(),
-            );
+        let (mut parked, mut seen) = (Vec::new(), Vec::new());
+        let params = ImpulseParams {
+            impact_propagation: true,
+            still_frames,
+            ..split_params()
+        };
+        let bodies = frames(&start, &movers, params, 30, |bodies, contacts, report| {
             parked.push(report.parked);
             let bits = |v: DVec2| (v.x.to_bits(), v.y.to_bits());
-            frames.push((
+            seen.push((
                 bodies
                     .iter()
                     .map(|b| (bits(b.pos), bits(b.vel)))
@@ -414,8 +418,8 @@ fn a_block_at_rest_sits_out_the_frames_until_a_body_reaches_it_to_the_bit() {
                     .map(|p| (p.normal_impulse.to_bits(), p.tangent_impulse.to_bits()))
                     .collect::<Vec<_>>(),
             ));
-        }
-        (frames, parked, bodies)
+        });
+        (seen, parked, bodies)
     };
     let (parked_frames, parked, bodies) = run(true);
     let (full_frames, none, _) = run(false);
