@@ -1,6 +1,7 @@
-//! The uniform grid every rigid broad phase bins boxes in: square cells of one size,
-//! hashed by their integer coordinates so the grid needs no bounds, and a list aside for
-//! boxes too large to bin (they would fill too many cells).
+//! The uniform grid every rigid broad phase bins boxes in: square cells of one size, kept
+//! in a dense block where the boxes are and hashed by their integer coordinates beyond it,
+//! so the grid needs no bounds, and a list aside for boxes too large to bin (they would
+//! fill too many cells).
 //!
 //! In: slots (body indices) with their boxes. Out: the slots whose cells a box touches.
 //! The static grid of a large all-static group (`dynamics::broad_phase`) builds it once;
