@@ -73,7 +73,7 @@ pub const PUSH_OUT_SPEED: f64 = 3.0;
 /// (2 more of 300 fresh seeds of heavy-on-light failed). Without split impulses the push
 /// is velocity and every contact keeps [`MAX_PUSH_OUT`]. A crowd its container holds is
 /// not pushed out in the passes at all but by the mean of its contacts' pushes
-/// ([`passes::spread_push_out`]), which keeps it evenly squeezed and still.
+/// ([`free::spread_push_out`]), which keeps it evenly squeezed and still.
 pub const CONTACT_PUSH_OUT: f64 = 10.0;
 
 /// A contact found with a larger gap than this (in body sizes) may close it and no more
@@ -215,8 +215,8 @@ struct Contact {
     /// One of the two bodies is static (soft contacts are stiffer there).
     fixed: bool,
     /// Two moving bodies that nothing accelerates, under split impulses, of a crowd its
-    /// container holds ([`passes::hold_free`] keeps only those): its push-out is spread
-    /// ([`passes::spread_push_out`]), not solved in the passes.
+    /// container holds ([`free::hold_free`] keeps only those): its push-out is spread
+    /// ([`free::spread_push_out`]), not solved in the passes.
     free: bool,
     /// It bounced in the frame (its bodies count as collided).
     bounced: bool,
@@ -345,10 +345,10 @@ pub struct SolverBuffers {
     #[serde(skip)]
     push_cap: Vec<f64>,
     /// Each body's spread push-out and how many contacts gave it (see
-    /// [`passes::spread_push_out`]).
+    /// [`free::spread_push_out`]).
     #[serde(skip)]
     spread: Vec<(DVec2, u32)>,
-    /// Union-find scratch of [`passes::hold_free`].
+    /// Union-find scratch of [`free::hold_free`].
     #[serde(skip)]
     held: Vec<u32>,
     /// The contacts a still frame pushes out in its passes (see [`still::Pushing`]).
@@ -551,7 +551,7 @@ pub fn solve_frame(
         }
         clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
-        let found_free = found.free && passes::hold_free(sb, buckets, held, found.touching_fixed);
+        let found_free = found.free && free::hold_free(sb, buckets, held, found.touching_fixed);
         // The change under which a pass has converged, in the units of the smallest
         // contact.
         let converged = CONVERGED_CHANGE * found.smallest;
@@ -620,7 +620,7 @@ pub fn solve_frame(
                     passes::warm_push(team, sb, work);
                 }
                 if found_free {
-                    passes::spread_push_out(sb, buckets, bias.push.rate, spread);
+                    free::spread_push_out(sb, buckets, bias.push.rate, spread);
                 }
             }
             passes::solve(
@@ -693,6 +693,7 @@ pub fn solve_frame(
 }
 
 mod blocks;
+mod free;
 mod impact;
 mod load;
 mod passes;

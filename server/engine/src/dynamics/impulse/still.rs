@@ -37,7 +37,7 @@ pub(super) fn frame(
 }
 
 /// One pass of a still frame: the push-out half of each contact's share of a velocity
-/// pass (the free contacts of a held crowd are pushed by [`super::passes::spread_push_out`]
+/// pass (the free contacts of a held crowd are pushed by [`super::free::spread_push_out`]
 /// instead). `rate` and `rate_fixed`: the push-out per unit of depth against moving and
 /// against static bodies.
 pub(super) fn push_pass(
