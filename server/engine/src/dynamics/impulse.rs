@@ -546,8 +546,14 @@ pub fn solve_frame(
         if let Some(up) = params.rest_load {
             load::rest(buckets, sb, gain, bodies, slotted, h, up);
         }
+        // Each mover's push-out cap, read by the support sweep's records and after every
+        // sub-step's passes.
+        if params.split_impulses || params.support.is_some() {
+            push_cap.clear();
+            push_cap.extend(movers.iter().map(|&i| body_push_out(&bodies[i as usize])));
+        }
         if let Some(up) = params.support {
-            supports.order(buckets, sb, bodies, slotted, up);
+            supports.order(team, buckets, sb, bodies, slotted, push_cap, up);
         }
         clock.lap(times.as_mut().map(|t| &mut t.search));
         let bias = Biases::of(&params, h);
@@ -605,10 +611,6 @@ pub fn solve_frame(
             if params.split_impulses {
                 unpushed.clear();
                 unpushed.extend(sb[..movers.len()].iter().map(|b| b.pseudo));
-                if step == 0 {
-                    push_cap.clear();
-                    push_cap.extend(movers.iter().map(|&i| body_push_out(&bodies[i as usize])));
-                }
                 // Before a step's first sub-step only the contacts found with a share
                 // of their last push have one; after it, any contact that pushed.
                 if step > 0 || found.warm_push {
@@ -654,7 +656,7 @@ pub fn solve_frame(
                 supports.sweep(sb, up, h, push);
             }
             if let Some(up) = params.exact_sliding {
-                passes::slide(sb, before, moved, buckets, up);
+                passes::slide(team, sb, before, moved, buckets, up);
             }
             clock.lap(times.as_mut().map(|t| &mut t.passes));
             passes::integrate_positions(sb, gain, buckets, pushed, params.flight, h, movers.len());
@@ -672,6 +674,7 @@ pub fn solve_frame(
             live.scatter(buckets);
         }
     }
+    let team = split(buffers.last_contacts);
     let SolverBuffers {
         bodies: sb,
         slot,
@@ -682,7 +685,7 @@ pub fn solve_frame(
         ..
     } = &mut *buffers;
     passes::store(
-        bodies, pairs, movers, sb, slotted, buckets, pushed, flagged, depths,
+        team, bodies, pairs, movers, sb, slotted, buckets, pushed, flagged, depths,
     );
     for &i in slotted.iter() {
         slot[i as usize] = UNSLOTTED;
@@ -698,6 +701,7 @@ mod impact;
 mod load;
 mod passes;
 mod prepare;
+mod split;
 mod still;
 mod support;
 mod team;

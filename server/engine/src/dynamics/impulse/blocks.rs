@@ -15,7 +15,7 @@
 
 use glam::DVec2;
 
-use super::{Contact, SolverBody};
+use super::SolverBody;
 
 /// Moving bodies per block below which a world is not split.
 pub const BLOCK_BODIES: usize = 512;
@@ -151,7 +151,7 @@ impl Bodies {
 }
 
 /// Splits `blocks` into `groups` runs of consecutive blocks, as even as can be.
-pub fn groups(blocks: &mut [Vec<Contact>], groups: usize) -> Vec<&mut [Vec<Contact>]> {
+pub fn groups<T>(blocks: &mut [T], groups: usize) -> Vec<&mut [T]> {
     let n = blocks.len();
     let mut out = Vec::with_capacity(groups);
     let mut rest = blocks;
@@ -168,6 +168,7 @@ pub fn groups(blocks: &mut [Vec<Contact>], groups: usize) -> Vec<&mut [Vec<Conta
 
 #[cfg(test)]
 mod tests {
+    use super::super::Contact;
     use super::*;
 
     #[test]

@@ -3,10 +3,14 @@
 //! `b2IntegratePositionsTask`, `b2RelaxContactsTask`, `b2ApplyRestitutionTask`,
 //! `b2StoreImpulsesTask`), and the velocity pass they share.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+
 use glam::DVec2;
 
 use super::blocks::{self, Bodies};
 use super::load::SUPPORT_COS;
+use super::split::{self, Shared};
 use super::support::SWEEP_COS;
 use super::team::Team;
 use super::{Bias, Biases, Contact, ImpulseParams, ImpulseReport, Pair, SolverBody};
@@ -149,6 +153,7 @@ pub(super) fn cap_push_out(sb: &mut [SolverBody], unpushed: &[DVec2], cap: &[f64
 /// alone: its impulse is a blow's, not a steady force over the sub-step (moved as if it
 /// were, the boxes a heavy body sweeps aside were driven into their neighbours).
 pub(super) fn slide(
+    team: &Team,
     sb: &mut [SolverBody],
     before: &[DVec2],
     moved: &mut Vec<DVec2>,
@@ -157,33 +162,52 @@ pub(super) fn slide(
 ) {
     moved.clear();
     moved.resize(sb.len(), DVec2::ZERO);
-    for c in buckets.iter_mut().flatten() {
-        let jt = c.tangent_impulse;
-        let most = c.friction * c.normal_impulse;
-        if jt == 0.0 || most <= 0.0 || c.normal.dot(up).abs() <= SWEEP_COS {
-            continue;
-        }
-        let (a, b) = (c.a as usize, c.b as usize);
-        let t = DVec2::new(-c.normal.y, c.normal.x);
-        let slid = (jt.abs() / most).min(1.0);
-        let p = t * (-0.5 * jt * slid);
-        moved[a] -= p * sb[a].inv_mass;
-        moved[b] += p * sb[b].inv_mass;
-        // A pair friction stopped: what stopped it does not push again (warm-started, it
-        // threw a box and the plank under it back the way the box came).
-        let u = (before[b] - before[a]).dot(t).abs();
-        if slid < 1.0 && u * c.mass > 0.1 * jt.abs() {
-            c.tangent_impulse = 0.0;
-        }
+    {
+        let shares = Shared::new(moved);
+        let sb = &*sb;
+        // A block's contacts add to its own bodies' shares (bodies that do not move take
+        // none): the same sums on any thread count.
+        split::each_block(team, buckets, |c| {
+            let jt = c.tangent_impulse;
+            let most = c.friction * c.normal_impulse;
+            if jt == 0.0 || most <= 0.0 || c.normal.dot(up).abs() <= SWEEP_COS {
+                return;
+            }
+            let (a, b) = (c.a as usize, c.b as usize);
+            let t = DVec2::new(-c.normal.y, c.normal.x);
+            let slid = (jt.abs() / most).min(1.0);
+            let p = t * (-0.5 * jt * slid);
+            let (ia, ib) = (sb[a].inv_mass, sb[b].inv_mass);
+            // SAFETY: a moving body's contacts are its block's and the boundary's, which
+            // run on one member at a time (`split::each_block`).
+            if ia != 0.0 {
+                unsafe { *shares.at(a) -= p * ia };
+            }
+            if ib != 0.0 {
+                unsafe { *shares.at(b) += p * ib };
+            }
+            // A pair friction stopped: what stopped it does not push again (warm-started,
+            // it threw a box and the plank under it back the way the box came).
+            let u = (before[b] - before[a]).dot(t).abs();
+            if slid < 1.0 && u * c.mass > 0.1 * jt.abs() {
+                c.tangent_impulse = 0.0;
+            }
+        });
     }
-    for ((s, &m), &v0) in sb.iter_mut().zip(moved.iter()).zip(before) {
-        let Some(dir) = m.try_normalize() else {
-            continue;
-        };
-        // The mean velocity's lead over the end's, along the share.
-        let most = ((v0 - s.vel) * 0.5).dot(dir);
-        s.pseudo += dir * most.clamp(0.0, m.length());
-    }
+    let bodies = Shared::new(sb);
+    let moved = &moved[..];
+    split::each_range(team, moved.len(), |_, range| {
+        for k in range {
+            let Some(dir) = moved[k].try_normalize() else {
+                continue;
+            };
+            // SAFETY: the ranges are disjoint.
+            let s = unsafe { bodies.at(k) };
+            // The mean velocity's lead over the end's, along the share.
+            let most = ((before[k] - s.vel) * 0.5).dot(dir);
+            s.pseudo += dir * most.clamp(0.0, moved[k].length());
+        }
+    });
 }
 
 /// Positions move by the velocities (and the pseudo-velocities, then dropped): a body a
@@ -387,61 +411,102 @@ pub(super) fn collisions(
 /// the frame's start in `depths[k]`. `slotted` names each solver body's world body.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn store(
+    team: &Team,
     bodies: &mut [Body],
     pairs: &mut [Pair],
     movers: &[u32],
     sb: &[SolverBody],
     slotted: &[u32],
-    buckets: &[Vec<Contact>],
+    buckets: &mut [Vec<Contact>],
     pushed: &mut Vec<bool>,
     flagged: &mut Vec<u32>,
     depths: &mut Vec<f64>,
 ) {
-    for (&i, s) in movers.iter().zip(sb.iter()) {
-        let body = &mut bodies[i as usize];
-        body.vel = s.vel;
-        body.pos += s.delta;
+    {
+        let world = Shared::new(bodies);
+        split::each_range(team, movers.len(), |_, range| {
+            for k in range {
+                // SAFETY: the movers are distinct bodies, and the ranges disjoint.
+                let body = unsafe { world.at(movers[k] as usize) };
+                body.vel = sb[k].vel;
+                body.pos += sb[k].delta;
+            }
+        });
     }
     // Which solver bodies a contact pushed, by slot (then each world body visited once).
     pushed.clear();
     pushed.resize(sb.len(), false);
-    // Whether any body of a contact sleeps (looked up per contact only then).
-    let sleepers = slotted.iter().any(|&i| bodies[i as usize].asleep.is_some());
     depths.clear();
     depths.resize(movers.len(), 0.0);
-    for c in buckets.iter().flatten() {
-        if c.gap < 0.0 {
+    // Whether any body of a contact sleeps (looked up per contact only then).
+    let sleepers = slotted.iter().any(|&i| bodies[i as usize].asleep.is_some());
+    {
+        let bodies = &*bodies;
+        let (depths, pairs) = (Shared::new(depths), Shared::new(pairs));
+        // SAFETY: `AtomicBool` has the size, alignment and bit validity of `bool`, and
+        // the flags are used only through the atomics until the borrow ends.
+        let pushed: &[AtomicBool] =
+            unsafe { &*(pushed.as_mut_slice() as *mut [bool] as *const [AtomicBool]) };
+        split::each_block(team, buckets, |c| {
+            if c.gap < 0.0 {
+                for s in [c.a as usize, c.b as usize] {
+                    if s < movers.len() && sb[s].inv_mass != 0.0 {
+                        // SAFETY: a moving body's contacts run on one member at a time.
+                        let d = unsafe { depths.at(s) };
+                        *d = d.max(-c.gap);
+                    }
+                }
+            }
+            // SAFETY: one contact a pair.
+            let pair = unsafe { pairs.at(c.pair as usize) };
+            pair.normal = c.normal;
+            // A sleeper is static to the step: what its contact took against it is not the
+            // impulse its body will carry when it wakes. Warm-started with it, a grain a
+            // heavy box landed on while it slept was launched at 400 u/s as it woke.
+            let asleep = |k: u32| bodies[slotted[k as usize] as usize].asleep.is_some();
+            let (jn, jt, jp) = if sleepers && (asleep(c.a) || asleep(c.b)) {
+                (0.0, 0.0, 0.0)
+            } else {
+                (c.normal_impulse, c.tangent_impulse, c.pseudo_impulse)
+            };
+            pair.normal_impulse = jn;
+            pair.tangent_impulse = jt;
+            pair.pseudo_impulse = jp;
+            if c.normal_impulse > 0.0 || c.bounced {
+                // Bodies that do not move are marked from any member.
+                pushed[c.a as usize].store(true, Ordering::Relaxed);
+                pushed[c.b as usize].store(true, Ordering::Relaxed);
+            }
+        });
+    }
+    // A mover frozen for the step (asleep) is in no block: its depths are found after
+    // (the deepest is the same in any order).
+    if sb[..movers.len()].iter().any(|s| s.inv_mass == 0.0) {
+        for c in buckets.iter().flatten().filter(|c| c.gap < 0.0) {
             for s in [c.a as usize, c.b as usize] {
-                if let Some(d) = depths.get_mut(s) {
-                    *d = d.max(-c.gap);
+                if s < movers.len() && sb[s].inv_mass == 0.0 {
+                    depths[s] = depths[s].max(-c.gap);
                 }
             }
         }
-        let pair = &mut pairs[c.pair as usize];
-        pair.normal = c.normal;
-        // A sleeper is static to the step: what its contact took against it is not the
-        // impulse its body will carry when it wakes. Warm-started with it, a grain a heavy
-        // box landed on while it slept was launched at 400 u/s as it woke.
-        let asleep = |k: u32| bodies[slotted[k as usize] as usize].asleep.is_some();
-        let (jn, jt, jp) = if sleepers && (asleep(c.a) || asleep(c.b)) {
-            (0.0, 0.0, 0.0)
-        } else {
-            (c.normal_impulse, c.tangent_impulse, c.pseudo_impulse)
-        };
-        pair.normal_impulse = jn;
-        pair.tangent_impulse = jt;
-        pair.pseudo_impulse = jp;
-        if c.normal_impulse > 0.0 || c.bounced {
-            pushed[c.a as usize] = true;
-            pushed[c.b as usize] = true;
-        }
     }
-    for (&i, _) in slotted.iter().zip(pushed.iter()).filter(|(_, &p)| p) {
-        let body = &mut bodies[i as usize];
-        if !body.collided {
-            body.collided = true;
-            flagged.push(i);
+    // The bodies newly collided, listed in slot order: each member lists its range's.
+    let lists: Vec<Mutex<Vec<u32>>> = (0..team.size()).map(|_| Mutex::default()).collect();
+    let world = Shared::new(bodies);
+    let ranges = split::each_range(team, slotted.len(), |k, range| {
+        let mut list = lists[k].lock().expect("a list");
+        for s in range.filter(|&s| pushed[s]) {
+            let i = slotted[s];
+            // SAFETY: the slotted bodies are distinct, and the ranges disjoint.
+            let body = unsafe { world.at(i as usize) };
+            if !body.collided {
+                body.collided = true;
+                list.push(i);
+            }
         }
+    });
+    for list in &lists[..ranges] {
+        flagged.extend_from_slice(&list.lock().expect("a list"));
     }
 }
 

@@ -6,6 +6,7 @@ use std::sync::Mutex;
 
 use glam::DVec2;
 
+use super::split::Shared;
 use super::team::Team;
 use super::{
     blocks, bounce_speed, Contact, ImpulseParams, Pair, SolverBody, SolverBuffers, UNSLOTTED,
@@ -187,10 +188,23 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
             .map(|((run, pairs), out)| find.contacts(pairs, run * size, out))
             .collect()
     };
-    for spare in found.iter_mut() {
-        for (bucket, more) in buckets.iter_mut().zip(spare.iter()) {
-            bucket.extend_from_slice(more);
-        }
+    // Each bucket takes the spares' contacts after its own, the buckets shared out among
+    // the team's members (a copy of every contact the helpers found).
+    if !found.is_empty() {
+        let count = buckets.len();
+        let view = Shared::new(buckets);
+        let found = &found[..];
+        team.run(&|k| {
+            let n = team.size();
+            for b in count * k / n..count * (k + 1) / n {
+                // SAFETY: the members' runs of buckets are disjoint.
+                let bucket = unsafe { view.at(b) };
+                for spare in found {
+                    bucket.extend_from_slice(&spare[b]);
+                }
+            }
+            0.0
+        });
     }
     partial.into_iter().fold(Found::default(), Found::and)
 }

@@ -28,6 +28,8 @@
 
 use glam::DVec2;
 
+use super::split::{self, Shared};
+use super::team::Team;
 use super::{Contact, SolverBody};
 use crate::dynamics::body::Body;
 
@@ -77,13 +79,17 @@ pub(super) struct Sweep {
 
 impl Sweep {
     /// Finds the contacts of `buckets` that hold a dynamic body up against `up` (unit,
-    /// against gravity) and orders them for the sweep.
+    /// against gravity) and orders them for the sweep. `push_cap`: each mover's push-out
+    /// cap ([`super::body_push_out`]), by slot.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn order(
         &mut self,
-        buckets: &[Vec<Contact>],
+        team: &Team,
+        buckets: &mut [Vec<Contact>],
         sb: &[SolverBody],
         bodies: &[Body],
         slotted: &[u32],
+        push_cap: &[f64],
         up: DVec2,
     ) {
         let n = sb.len();
@@ -102,11 +108,16 @@ impl Sweep {
             };
             (sb[upper as usize].inv_mass != 0.0).then_some((upper, lower, normal, cos.abs()))
         };
-        // How many contacts hold each body up.
-        for c in buckets.iter().flatten() {
-            if let Some((upper, ..)) = support(c) {
-                self.count[upper as usize] += 1;
-            }
+        // How many contacts hold each body up. An upper body moves, so a block's
+        // contacts count its own bodies only (`split`).
+        {
+            let count = Shared::new(&mut self.count);
+            split::each_block(team, buckets, |c| {
+                if let Some((upper, ..)) = support(c) {
+                    // SAFETY: a moving body's contacts run on one member at a time.
+                    unsafe { *count.at(upper as usize) += 1 };
+                }
+            });
         }
         // The bodies that stand on something, by height: last frame's order kept where
         // it still holds, bodies newly standing after it, then sorted (a stable sort that
@@ -162,12 +173,19 @@ impl Sweep {
         };
         self.records.clear();
         self.records.resize(at as usize, blank);
-        for c in buckets.iter().flatten() {
+        // Each upper body's records in the order its contacts come (its block's, then the
+        // boundary's), at places no other body's take.
+        let records = Shared::new(&mut self.records);
+        let place = Shared::new(count);
+        split::each_block(team, buckets, |c| {
             let Some((upper, lower, normal, cos)) = support(c) else {
-                continue;
+                return;
             };
-            let place = &mut count[upper as usize];
-            self.records[*place as usize] = Record {
+            // SAFETY: a moving body's contacts run on one member at a time, and its
+            // records' places are its own.
+            let place = unsafe { place.at(upper as usize) };
+            let record = unsafe { records.at(*place as usize) };
+            *record = Record {
                 upper,
                 lower,
                 normal,
@@ -175,13 +193,13 @@ impl Sweep {
                 gap: c.gap,
                 slop: c.slop,
                 max_push: c.max_push,
-                body_push: super::body_push_out(&bodies[slotted[upper as usize] as usize]),
+                body_push: push_cap[upper as usize],
                 speculative: c.speculative,
                 keep: f64::from(c.keep),
                 fixed: c.fixed,
             };
             *place += 1;
-        }
+        });
     }
 
     /// One sweep over the supporting contacts (as [`Sweep::order`] left them against `up`) at the end of a

@@ -441,3 +441,79 @@ fn a_block_at_rest_sits_out_the_frames_until_a_body_reaches_it_to_the_bit() {
         assert_eq!(p, f, "frame {k}");
     }
 }
+
+#[test]
+fn every_mover_asleep_or_awake_gets_its_deepest_overlap_on_any_thread_count() {
+    // 100 x 100 unit boxes 0.05 into their neighbours, one in seven asleep: blocks, and
+    // contacts enough for the work around the passes to split on two threads.
+    let n = 100u32;
+    let start: Vec<Body> = (0..n * n)
+        .map(|k| {
+            let at = DVec2::new(f64::from(k % n), f64::from(k / n)) * 0.95;
+            let mut b = body(k, at, DVec2::ZERO, 1.0);
+            if k % 7 == 3 {
+                b.asleep = Some(crate::dynamics::body::Sleeper { inv_mass: 1.0 });
+                b.inv_mass = 0.0;
+            }
+            b
+        })
+        .collect();
+    let movers: Vec<u32> = (0..n * n).collect();
+    let run = |threads: u32| {
+        let mut bodies = start.clone();
+        let mut candidates: Vec<(u32, u32)> = (0..n * n)
+            .flat_map(|k| {
+                let right = (k % n + 1 < n).then_some((k, k + 1));
+                let up = (k + n < n * n).then_some((k, k + n));
+                right.into_iter().chain(up)
+            })
+            .collect();
+        let mut contacts = Contacts::default();
+        contacts.refill(&mut candidates, &mut Vec::new());
+        let mut buffers = SolverBuffers::default();
+        let params = ImpulseParams {
+            threads,
+            ..split_params()
+        };
+        let (mut flagged, mut first) = (Vec::new(), Vec::new());
+        for frame in 0..2 {
+            flagged.clear();
+            solve_frame(
+                &mut bodies,
+                &mut contacts.pairs,
+                params,
+                &mut buffers,
+                &movers,
+                |_| DVec2::ZERO,
+                &mut flagged,
+            );
+            if frame == 0 {
+                first = buffers.depths().to_vec();
+            }
+        }
+        let places: Vec<[u64; 4]> = bodies
+            .iter()
+            .map(|b| [b.pos.x, b.pos.y, b.vel.x, b.vel.y].map(f64::to_bits))
+            .collect();
+        let impulses: Vec<[u64; 3]> = contacts
+            .pairs
+            .iter()
+            .map(|p| [p.normal_impulse, p.tangent_impulse, p.pseudo_impulse].map(f64::to_bits))
+            .collect();
+        (first, buffers.depths().to_vec(), places, impulses, flagged)
+    };
+    let one = run(1);
+    // The first frame starts every body, asleep or not, 0.05 into its neighbours.
+    assert_eq!(one.0.len(), movers.len());
+    for (k, d) in one.0.iter().enumerate() {
+        assert!((d - 0.05).abs() < 1e-9, "mover {k}: {d}");
+    }
+    // The push-out moved the awake bodies apart (what is stored changed).
+    let moved = one
+        .2
+        .iter()
+        .zip(&start)
+        .filter(|(p, b)| p[0] != b.pos.x.to_bits());
+    assert!(moved.count() > 1000);
+    assert!(one == run(2), "two threads differ from one");
+}
