@@ -188,14 +188,21 @@ pub(super) fn prepare<G: Fn(&Body) -> DVec2 + Sync>(
             .map(|((run, pairs), out)| find.contacts(pairs, run * size, out))
             .collect()
     };
-    // Each bucket takes the spares' contacts after its own, the buckets shared out among
-    // the team's members (a copy of every contact the helpers found).
+    // Each bucket takes the spares' contacts after its own. The helpers found them (they
+    // are in the helpers' caches): the helpers copy, the buckets shared out among them.
     if !found.is_empty() {
         let count = buckets.len();
         let view = Shared::new(buckets);
         let found = &found[..];
+        let helpers = team.size() - 1;
         team.run(&|k| {
-            let n = team.size();
+            let (k, n) = if helpers == 0 {
+                (0, 1)
+            } else if k == 0 {
+                return 0.0;
+            } else {
+                (k - 1, helpers)
+            };
             for b in count * k / n..count * (k + 1) / n {
                 // SAFETY: the members' runs of buckets are disjoint.
                 let bucket = unsafe { view.at(b) };

@@ -124,8 +124,14 @@ impl Sweep {
         // finds the runs already in order; on a first frame, with no order to keep, an
         // unstable one: every key differs, so either gives the same order).
         self.heights.clear();
-        self.heights
-            .extend(slotted.iter().map(|&i| bodies[i as usize].pos.dot(up)));
+        self.heights.resize(slotted.len(), 0.0);
+        let heights = Shared::new(&mut self.heights);
+        split::each_range(team, slotted.len(), |_, range| {
+            for s in range {
+                // SAFETY: the ranges are disjoint.
+                unsafe { *heights.at(s) = bodies[slotted[s] as usize].pos.dot(up) };
+            }
+        });
         let count = &mut self.count;
         let fresh = self.order.is_empty();
         self.order
