@@ -261,9 +261,9 @@ fn threads_table(s: &mut String, results: &[SceneResult]) {
          body's position and velocity). Work is split only where it splits without \
          changing a bit (blocks of contacts that share no moving body, chunks of at \
          least {} particles), so small scenes stay on one thread. Why the speed-up stays \
-         small on large piles too (the work that splits is about half of their step) and \
-         what would raise it: docs/bench/engine-notes.md, \"Why two threads stay far from \
-         1.7x\".\n\n\
+         under 1.7x on large piles too (the support sweep, the pile's order and the broad \
+         phase run in sequence: about a third of their step) and what was measured: \
+         docs/bench/engine-notes.md, \"Why two threads stay far from 1.7x\".\n\n\
          | scene | 1 thread ms/step | 2 threads ms/step | speed-up | same bits |\n\
          |---|---:|---:|---:|---|",
         ricochet_engine::parallel::MIN_SPLIT

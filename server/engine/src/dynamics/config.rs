@@ -225,10 +225,12 @@ pub struct WorldConfig {
     /// Seconds at rest before an island sleeps.
     pub sleep_delay: f64,
     /// Threads a step may use (1: the calling thread only). The particle passes (motion,
-    /// and meeting the shapes) and the impulse solver's passes over contacts in blocks
-    /// (worlds of 1024 moving bodies or more) are split among them; the results are the
-    /// same bits whatever the count (each particle is its own work; blocks touch disjoint
-    /// bodies). The relaxation solver runs on one.
+    /// and meeting the shapes) and, in worlds of 1024 moving bodies or more with 8192
+    /// contacts or more, the impulse solver's contact search, its passes over contacts in
+    /// blocks and the work around them (ordering the supports, exact sliding, storing) are
+    /// split among them; the results are the same bits whatever the count (each particle is
+    /// its own work; blocks touch disjoint bodies). The support and impact sweeps, the
+    /// broad phase and the relaxation solver run on one.
     pub threads: u32,
     /// The accuracy the scene asks for instead of solver knobs: the worst position error
     /// of its dynamic bodies over a measured run against a converged reference, in scene
