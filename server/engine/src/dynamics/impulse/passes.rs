@@ -490,7 +490,18 @@ pub(super) fn store(
             }
         }
     }
-    // The bodies newly collided, listed in slot order: each member lists its range's.
+    // The bodies newly collided, listed in slot order.
+    if split::ranges(team, slotted.len()) == 1 {
+        for (&i, _) in slotted.iter().zip(pushed.iter()).filter(|(_, &p)| p) {
+            let body = &mut bodies[i as usize];
+            if !body.collided {
+                body.collided = true;
+                flagged.push(i);
+            }
+        }
+        return;
+    }
+    // On several threads each member lists its range's, joined in order.
     let lists: Vec<Mutex<Vec<u32>>> = (0..team.size()).map(|_| Mutex::default()).collect();
     let world = Shared::new(bodies);
     let ranges = split::each_range(team, slotted.len(), |k, range| {

@@ -53,7 +53,7 @@ pub(super) fn each_range(
     len: usize,
     work: impl Fn(usize, Range<usize>) + Sync,
 ) -> usize {
-    let n = if len < RANGE_SPLIT { 1 } else { team.size() };
+    let n = ranges(team, len);
     if n <= 1 {
         work(0, 0..len);
         return 1;
@@ -63,6 +63,15 @@ pub(super) fn each_range(
         0.0
     });
     n
+}
+
+/// How many ranges [`each_range`] cuts `0..len` into for `team`.
+pub(super) fn ranges(team: &Team, len: usize) -> usize {
+    if len < RANGE_SPLIT {
+        1
+    } else {
+        team.size()
+    }
 }
 
 /// Items below which [`each_range`] keeps a range whole (the hand-over would cost more).
