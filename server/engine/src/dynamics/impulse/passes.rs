@@ -8,7 +8,7 @@ use std::sync::Mutex;
 
 use glam::DVec2;
 
-use super::blocks::{self, Bodies};
+use super::blocks::Bodies;
 use super::load::SUPPORT_COS;
 use super::split::{self, Shared};
 use super::support::SWEEP_COS;
@@ -716,7 +716,6 @@ pub(super) fn in_blocks(
 ) -> f64 {
     let bodies = Bodies::new(sb);
     let (blocks, boundary) = buckets.split_at_mut(buckets.len() - 1);
-    let n = team.size().min(blocks.len());
     let run = |group: &mut [Vec<Contact>]| {
         let mut largest = 0.0_f64;
         let mut solve = |c: &mut Contact| largest = largest.max(work(bodies, c));
@@ -757,27 +756,6 @@ pub(super) fn in_blocks(
         }
         largest
     };
-    let largest = if n > 1 {
-        let groups: Vec<Group> = blocks::groups(blocks, n)
-            .into_iter()
-            .map(|g| Group(g.as_mut_ptr(), g.len()))
-            .collect();
-        team.run(&|k| match groups.get(k) {
-            // SAFETY: the groups are disjoint runs of `blocks`, borrowed for this call,
-            // and member `k` alone takes group `k`.
-            Some(g) => run(unsafe { std::slice::from_raw_parts_mut(g.0, g.1) }),
-            None => 0.0,
-        })
-    } else {
-        run(blocks)
-    };
+    let largest = split::on_groups(team, blocks, run);
     largest.max(run(boundary))
 }
-
-/// One thread's run of blocks, handed to a team member.
-struct Group(*mut Vec<Contact>, usize);
-
-// SAFETY: a group is a run of blocks no other member touches during the pass that made it
-// (`in_blocks`), and it does not outlive that pass.
-unsafe impl Send for Group {}
-unsafe impl Sync for Group {}

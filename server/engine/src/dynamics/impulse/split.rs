@@ -24,25 +24,35 @@ pub(super) fn each_block<C: Send>(
     let Some((boundary, blocks)) = buckets.split_last_mut() else {
         return;
     };
-    let n = team.size().min(blocks.len());
-    if n > 1 {
-        let groups: Vec<Group<C>> = blocks::groups(blocks, n)
-            .into_iter()
-            .map(|g| Group(g.as_mut_ptr(), g.len()))
-            .collect();
-        team.run(&|k| {
-            if let Some(g) = groups.get(k) {
-                // SAFETY: the groups are disjoint runs of `blocks`, borrowed for this
-                // call, and member `k` alone takes group `k`.
-                let group = unsafe { std::slice::from_raw_parts_mut(g.0, g.1) };
-                group.iter_mut().flatten().for_each(&work);
-            }
-            0.0
-        });
-    } else {
-        blocks.iter_mut().flatten().for_each(&work);
-    }
+    on_groups(team, blocks, |group| {
+        group.iter_mut().flatten().for_each(&work);
+        0.0
+    });
     boundary.iter_mut().for_each(&work);
+}
+
+/// Runs `run` on runs of neighbouring `blocks`, one run on each of the team's members at
+/// once (every block in one run on the caller when it is alone or there is one block);
+/// returns the largest result.
+pub(super) fn on_groups<C: Send>(
+    team: &Team,
+    blocks: &mut [Vec<C>],
+    run: impl Fn(&mut [Vec<C>]) -> f64 + Sync,
+) -> f64 {
+    let n = team.size().min(blocks.len());
+    if n <= 1 {
+        return run(blocks);
+    }
+    let groups: Vec<Group<C>> = blocks::groups(blocks, n)
+        .into_iter()
+        .map(|g| Group(g.as_mut_ptr(), g.len()))
+        .collect();
+    team.run(&|k| match groups.get(k) {
+        // SAFETY: the groups are disjoint runs of `blocks`, borrowed for this call, and
+        // member `k` alone takes group `k`.
+        Some(g) => run(unsafe { std::slice::from_raw_parts_mut(g.0, g.1) }),
+        None => 0.0,
+    })
 }
 
 /// Runs `work(k, range)` on `0..len` cut into one range per member `k` of the team, in
@@ -81,7 +91,7 @@ const RANGE_SPLIT: usize = 1024;
 struct Group<C>(*mut Vec<C>, usize);
 
 // SAFETY: a group is a run of buckets no other member touches during the call that made it
-// (`each_block`), and it does not outlive that call.
+// (`on_groups`), and it does not outlive that call.
 unsafe impl<C: Send> Send for Group<C> {}
 unsafe impl<C: Send> Sync for Group<C> {}
 
